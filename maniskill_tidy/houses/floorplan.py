@@ -37,8 +37,19 @@ ROOM_SPECS: list[tuple[tuple[str, ...], float]] = [
     (("Kitchen", "LivingRoom", "Bedroom", "Bedroom", "Bathroom"), 1.5),
     (("Kitchen", "LivingRoom", "Bedroom", "Bedroom", "Bathroom", "Bathroom"), 1.0),
     (("Kitchen", "LivingRoom", "Bedroom", "Bedroom", "Bedroom", "Bathroom", "Bathroom"), 0.5),
-    (("Kitchen", "LivingRoom", "LivingRoom", "Bedroom", "Bedroom", "Bedroom", "Bathroom",
-      "Bathroom"), 0.3),
+    (
+        (
+            "Kitchen",
+            "LivingRoom",
+            "LivingRoom",
+            "Bedroom",
+            "Bedroom",
+            "Bedroom",
+            "Bathroom",
+            "Bathroom",
+        ),
+        0.3,
+    ),
 ]
 FLOORS = {"Kitchen": "tile", "LivingRoom": "wood", "Bedroom": "carpet", "Bathroom": "marble"}
 WALLS = ("plaster", "paint_cream", "paint_blue", "paint_green", "brick")
@@ -145,14 +156,22 @@ def build_walls(rooms: list[Room]) -> list[Wall]:
                         covered.append((s, e))
                         if a < b:
                             start, end = _segment(axis, fixed, s, e)
-                            walls.append(Wall(f"wall_{len(walls)}", start, end, [ra.id, rb.id],
-                                              material=ra.wall_material))
+                            walls.append(
+                                Wall(
+                                    f"wall_{len(walls)}",
+                                    start,
+                                    end,
+                                    [ra.id, rb.id],
+                                    material=ra.wall_material,
+                                )
+                            )
             cursor = lo
             for s, e in sorted(covered) + [(hi, hi)]:
                 if s - cursor > 1e-6:
                     start, end = _segment(axis, fixed, cursor, s)
-                    walls.append(Wall(f"wall_{len(walls)}", start, end, [ra.id],
-                                      material=ra.wall_material))
+                    walls.append(
+                        Wall(f"wall_{len(walls)}", start, end, [ra.id], material=ra.wall_material)
+                    )
                 cursor = max(cursor, e)
     return walls
 
@@ -175,8 +194,11 @@ def place_doors(rooms: list[Room], walls: list[Wall], rng: np.random.Generator) 
         raise LayoutError("rooms do not all touch along a wall long enough for a door")
     tree = nx.minimum_spanning_tree(graph)
     chosen = sorted(tree.edges(data=True), key=lambda e: e[2]["wall"])
-    extras = [e for e in sorted(graph.edges(data=True), key=lambda e: e[2]["wall"])
-              if not tree.has_edge(e[0], e[1]) and "Bathroom" not in (types[e[0]], types[e[1]])]
+    extras = [
+        e
+        for e in sorted(graph.edges(data=True), key=lambda e: e[2]["wall"])
+        if not tree.has_edge(e[0], e[1]) and "Bathroom" not in (types[e[0]], types[e[1]])
+    ]
     chosen += [e for e in extras if rng.uniform() < 0.25]
     by_id = {w.id: w for w in walls}
     doors = []
@@ -187,6 +209,9 @@ def place_doors(rooms: list[Room], walls: list[Wall], rng: np.random.Generator) 
         slots = int(round((length - DOOR_WIDTH - 0.5) / 0.25))
         offset = 0.25 + DOOR_WIDTH / 2 + 0.25 * int(rng.integers(0, slots + 1))
         t = offset / length
-        center = [w.start[0] + t * (w.end[0] - w.start[0]), w.start[1] + t * (w.end[1] - w.start[1])]
+        center = [
+            w.start[0] + t * (w.end[0] - w.start[0]),
+            w.start[1] + t * (w.end[1] - w.start[1]),
+        ]
         doors.append(Door(f"door_{len(doors)}", w.id, sorted([a, b]), center, width=DOOR_WIDTH))
     return doors

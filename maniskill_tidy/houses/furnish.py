@@ -30,8 +30,9 @@ GAP = 0.02
 SIDE_YAW = {"south": 0.0, "north": math.pi, "west": -math.pi / 2, "east": math.pi / 2}
 
 
-def overlaps(a: tuple[float, float, float, float], b: tuple[float, float, float, float],
-             gap: float = 0.0) -> bool:
+def overlaps(
+    a: tuple[float, float, float, float], b: tuple[float, float, float, float], gap: float = 0.0
+) -> bool:
     return a[0] < b[2] + gap and b[0] < a[2] + gap and a[1] < b[3] + gap and b[1] < a[3] + gap
 
 
@@ -48,8 +49,15 @@ def front_zone(f: Furniture) -> tuple[float, float, float, float] | None:
 class RoomFurnisher:
     """Places furniture into one house, room by room, sharing one navigation grid."""
 
-    def __init__(self, frame: GridFrame, free: np.ndarray, rooms: list[Room], doors: list[Door],
-                 door_axes: dict[str, str], rng: np.random.Generator) -> None:
+    def __init__(
+        self,
+        frame: GridFrame,
+        free: np.ndarray,
+        rooms: list[Room],
+        doors: list[Door],
+        door_axes: dict[str, str],
+        rng: np.random.Generator,
+    ) -> None:
         self.frame, self.free, self.rng = frame, free, rng
         self.rooms, self.doors, self.door_axes = rooms, doors, door_axes
         self.placed: list[Furniture] = []
@@ -79,8 +87,12 @@ class RoomFurnisher:
             t = lo if rng.uniform() < 0.5 else hi
         else:
             t = _q(rng.uniform(lo, hi))
-        depth_at = {"south": y0 + m + d / 2, "north": y1 - m - d / 2,
-                    "west": x0 + m + d / 2, "east": x1 - m - d / 2}[side]
+        depth_at = {
+            "south": y0 + m + d / 2,
+            "north": y1 - m - d / 2,
+            "west": x0 + m + d / 2,
+            "east": x1 - m - d / 2,
+        }[side]
         xy = [t, depth_at] if side in ("south", "north") else [depth_at, t]
         return xy, yaw
 
@@ -89,8 +101,12 @@ class RoomFurnisher:
         x0, y0, x1, y1 = room.bounds()
         fp = f.footprint()
         m = WALL_THICKNESS / 2
-        if fp[0] < x0 + m - 1e-6 or fp[2] > x1 - m + 1e-6 or fp[1] < y0 + m - 1e-6 or (
-                fp[3] > y1 - m + 1e-6):
+        if (
+            fp[0] < x0 + m - 1e-6
+            or fp[2] > x1 - m + 1e-6
+            or fp[1] < y0 + m - 1e-6
+            or (fp[3] > y1 - m + 1e-6)
+        ):
             return False
         zone = front_zone(f)
         if zone and (zone[0] < x0 or zone[2] > x1 or zone[1] < y0 or zone[3] > y1):
@@ -100,7 +116,9 @@ class RoomFurnisher:
             if other.parent is not None:
                 continue
             both_on_floor = floor_piece and other.position[2] == 0.0
-            if not both_on_floor and (f.position[2] > other.size[2] or other.position[2] > f.size[2]):
+            if not both_on_floor and (
+                f.position[2] > other.size[2] or other.position[2] > f.size[2]
+            ):
                 continue  # a wall-mounted piece above a low one
             ofp = other.footprint()
             if overlaps(fp, ofp, GAP):
@@ -132,14 +150,22 @@ class RoomFurnisher:
         size = template.sample_size(self.rng)
         surfaces, joints = parts_for(type_name, size)
         for _ in range(TRIES):
-            pose = self._pose(room, "wall" if template.stance == "wall_mounted" else
-                              template.stance, size)
+            pose = self._pose(
+                room, "wall" if template.stance == "wall_mounted" else template.stance, size
+            )
             if pose is None:
                 continue
             xy, yaw = pose
-            f = Furniture(id=f"{type_name}_{len(self.placed)}", type=type_name, room=room.id,
-                          position=[xy[0], xy[1], template.elevation], yaw=yaw, size=size,
-                          surfaces=surfaces, joints=joints)
+            f = Furniture(
+                id=f"{type_name}_{len(self.placed)}",
+                type=type_name,
+                room=room.id,
+                position=[xy[0], xy[1], template.elevation],
+                yaw=yaw,
+                size=size,
+                surfaces=surfaces,
+                joints=joints,
+            )
             if not self._fits(f, room, keepout):
                 continue
             free = self._navigable_with(f, template.blocks_navigation)
@@ -174,11 +200,17 @@ class RoomFurnisher:
             x = host.position[0] + c * local_x - s * local_y
             y = host.position[1] + s * local_x + c * local_y
             surfaces, joints = parts_for(child_type, size)
-            child = Furniture(id=f"{child_type}_{len(self.placed)}", type=child_type,
-                              room=host.room, position=[_q(x, 0.001), _q(y, 0.001),
-                                                         host.position[2] + top.center[2]],
-                              yaw=host.yaw, size=size, surfaces=surfaces, joints=joints,
-                              parent=host.id)
+            child = Furniture(
+                id=f"{child_type}_{len(self.placed)}",
+                type=child_type,
+                room=host.room,
+                position=[_q(x, 0.001), _q(y, 0.001), host.position[2] + top.center[2]],
+                yaw=host.yaw,
+                size=size,
+                surfaces=surfaces,
+                joints=joints,
+                parent=host.id,
+            )
             self.placed.append(child)
 
     def furnish(self, room: Room, walls_of_room: set[str]) -> None:
@@ -196,10 +228,18 @@ class RoomFurnisher:
 def _door_zone(door: Door, axis: str) -> tuple[float, float, float, float]:
     half_w = door.width / 2 + 0.2
     if axis == "x":  # wall runs along x: keep clear in +-y
-        return (door.center[0] - half_w, door.center[1] - DOOR_KEEPOUT,
-                door.center[0] + half_w, door.center[1] + DOOR_KEEPOUT)
-    return (door.center[0] - DOOR_KEEPOUT, door.center[1] - half_w,
-            door.center[0] + DOOR_KEEPOUT, door.center[1] + half_w)
+        return (
+            door.center[0] - half_w,
+            door.center[1] - DOOR_KEEPOUT,
+            door.center[0] + half_w,
+            door.center[1] + DOOR_KEEPOUT,
+        )
+    return (
+        door.center[0] - DOOR_KEEPOUT,
+        door.center[1] - half_w,
+        door.center[0] + DOOR_KEEPOUT,
+        door.center[1] + half_w,
+    )
 
 
 def _q(v: float, step: float = 0.05) -> float:

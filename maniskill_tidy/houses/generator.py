@@ -7,6 +7,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import asdict
 
 import numpy as np
 
@@ -18,7 +19,7 @@ from maniskill_tidy.houses.floorplan import (
     sample_room_spec,
 )
 from maniskill_tidy.houses.furnish import RoomFurnisher
-from maniskill_tidy.houses.navgrid import GridFrame, structural_free
+from maniskill_tidy.houses.navgrid import GridFrame, components, compute_free, structural_free
 from maniskill_tidy.houses.objects import MIN_OBJECTS, ObjectPlacer
 from maniskill_tidy.houses.schema import House, Light
 
@@ -43,13 +44,20 @@ def _lights(house: House) -> list[Light]:
             t = (k + 1) / (n + 1)
             x = x0 + t * (x1 - x0) if long_x else (x0 + x1) / 2
             y = (y0 + y1) / 2 if long_x else y0 + t * (y1 - y0)
-            lights.append(Light(f"light_{len(lights)}", room.id, [x, y, height],
-                                intensity=round(min(1.0, room.area() / (10.0 * n)), 3)))
+            lights.append(
+                Light(
+                    f"light_{len(lights)}",
+                    room.id,
+                    [x, y, height],
+                    intensity=round(min(1.0, room.area() / (10.0 * n)), 3),
+                )
+            )
     return lights
 
 
-def generate_house(seed: int, index: int = 0, spec: list[str] | None = None,
-                   max_attempts: int = 20) -> House:
+def generate_house(
+    seed: int, index: int = 0, spec: list[str] | None = None, max_attempts: int = 20
+) -> House:
     """House ``index`` of the dataset with seed ``seed`` (room types from ``spec`` if given)."""
     rng = house_rng(seed, index)
     room_spec = list(spec) if spec else sample_room_spec(rng)
@@ -62,25 +70,43 @@ def generate_house(seed: int, index: int = 0, spec: list[str] | None = None,
         except LayoutError as e:
             last_error = str(e)
             continue
-        house = House(id=f"house_{index:05d}", seed=seed, source="procedural", rooms=rooms,
-                      walls=walls, doors=doors, lights=[], furniture=[], objects=[],
-                      room_spec=room_spec)
+        house = House(
+            id=f"house_{index:05d}",
+            seed=seed,
+            source="procedural",
+            rooms=rooms,
+            walls=walls,
+            doors=doors,
+            lights=[],
+            furniture=[],
+            objects=[],
+            room_spec=room_spec,
+        )
         frame = GridFrame.around(rooms)
         free = structural_free(house, frame)
         wall_axis = {w.id: "x" if abs(w.start[1] - w.end[1]) < 1e-9 else "y" for w in walls}
-        furnisher = RoomFurnisher(frame, free, rooms, doors,
-                                  {d.id: wall_axis[d.wall] for d in doors}, rng)
+        furnisher = RoomFurnisher(
+            frame, free, rooms, doors, {d.id: wall_axis[d.wall] for d in doors}, rng
+        )
         for room in rooms:
             room_walls = {w.id for w in walls if room.id in w.rooms}
             furnisher.furnish(room, room_walls)
-        house.furniture = furnisher.placed
-        placer = ObjectPlacer(house, frame, furnisher.free, rng)
+        # Compute the grid from the geometry as it will be saved (rounded), so that a reader
+        # recomputing it from the file gets exactly the stored grid.
+        house = House.from_dict(
+            {**house.to_dict(), "furniture": [asdict(f) for f in furnisher.placed]}
+        )
+        frame, free = compute_free(house)
+        if components(free)[1] != 1:
+            last_error = "rounding disconnected the free cells"
+            continue
+        placer = ObjectPlacer(house, frame, free, rng)
         placer.populate()
         if len(house.objects) < MIN_OBJECTS:
             last_error = f"only {len(house.objects)} objects fit"
             continue
         house.lights = _lights(house)
-        house.navgrid = frame.to_navgrid(furnisher.free)
+        house.navgrid = frame.to_navgrid(free)
         return house
     raise GenerationError(f"house {index} (seed {seed}, rooms {room_spec}): {last_error}")
 

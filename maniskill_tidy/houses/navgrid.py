@@ -19,6 +19,7 @@ from scipy import ndimage
 from maniskill_tidy.houses.schema import AGENT_RADIUS, CELL, House, NavGrid, Room
 
 REACH = 1.0
+EPS = 1e-3  # distance tolerance, larger than the 1e-4 rounding of saved coordinates
 FOUR_WAY = ndimage.generate_binary_structure(2, 1)
 
 
@@ -46,8 +47,12 @@ class GridFrame:
         """Cells whose centre is inside ``room`` and at least ``margin`` from its boundary."""
         x0, y0, x1, y1 = room.bounds()
         if len(room.polygon) == 4 and _axis_aligned(room.polygon):
-            return (self.X > x0 + margin) & (self.X < x1 - margin) & (self.Y > y0 + margin) & (
-                self.Y < y1 - margin)
+            return (
+                (self.X > x0 + margin)
+                & (self.X < x1 - margin)
+                & (self.Y > y0 + margin)
+                & (self.Y < y1 - margin)
+            )
         pts = np.stack([self.X.ravel(), self.Y.ravel()], axis=1)
         inside = PolygonPath(room.polygon).contains_points(pts, radius=-2 * margin)
         return inside.reshape(self.shape)
@@ -68,13 +73,16 @@ class GridFrame:
 
     def bounds_distance(self, b: tuple[float, float, float, float]) -> np.ndarray:
         x0, y0, x1, y1 = b
-        return np.hypot(np.maximum(np.maximum(x0 - self.X, self.X - x1), 0),
-                        np.maximum(np.maximum(y0 - self.Y, self.Y - y1), 0))
+        return np.hypot(
+            np.maximum(np.maximum(x0 - self.X, self.X - x1), 0),
+            np.maximum(np.maximum(y0 - self.Y, self.Y - y1), 0),
+        )
 
     def to_navgrid(self, free: np.ndarray) -> NavGrid:
         rows = ["".join("." if v else "#" for v in row) for row in free]
-        return NavGrid(origin=[float(self.origin[0]), float(self.origin[1])],
-                       shape=list(self.shape), rows=rows)
+        return NavGrid(
+            origin=[float(self.origin[0]), float(self.origin[1])], shape=list(self.shape), rows=rows
+        )
 
 
 def _axis_aligned(poly: list[list[float]]) -> bool:
@@ -115,12 +123,12 @@ def structural_free(house: House, frame: GridFrame) -> np.ndarray:
     for room in house.rooms:
         free |= frame.room_mask(room)
     for a, b, thickness in solid_wall_segments(house):
-        free &= frame.segment_distance(a, b) >= AGENT_RADIUS + thickness / 2
+        free &= frame.segment_distance(a, b) >= AGENT_RADIUS + thickness / 2 - EPS
     return free
 
 
 def furniture_blocked(frame: GridFrame, f) -> np.ndarray:
-    return frame.rect_distance(f.position, f.size[0], f.size[1], f.yaw) < AGENT_RADIUS
+    return frame.rect_distance(f.position, f.size[0], f.size[1], f.yaw) < AGENT_RADIUS - EPS
 
 
 def blocks_navigation(f) -> bool:
@@ -155,10 +163,14 @@ def main_component(free: np.ndarray) -> np.ndarray:
     return labels == (int(np.argmax(sizes)) + 1)
 
 
-def reach_cells(frame: GridFrame, walkable: np.ndarray,
-                bounds: tuple[float, float, float, float], reach: float = REACH) -> np.ndarray:
+def reach_cells(
+    frame: GridFrame,
+    walkable: np.ndarray,
+    bounds: tuple[float, float, float, float],
+    reach: float = REACH,
+) -> np.ndarray:
     """Walkable cells from which something with footprint ``bounds`` is within reach."""
-    return walkable & (frame.bounds_distance(bounds) <= reach)
+    return walkable & (frame.bounds_distance(bounds) <= reach + EPS)
 
 
 def grid_array(nav: NavGrid) -> np.ndarray:

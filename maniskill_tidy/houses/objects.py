@@ -59,8 +59,9 @@ def fits(slot: SurfaceSlot, size: list[float]) -> bool:
 class ObjectPlacer:
     """Finds free spots for objects on surfaces and on the floor of one house."""
 
-    def __init__(self, house: House, frame: GridFrame, free: np.ndarray,
-                 rng: np.random.Generator) -> None:
+    def __init__(
+        self, house: House, frame: GridFrame, free: np.ndarray, rng: np.random.Generator
+    ) -> None:
         self.house, self.frame, self.rng = house, frame, rng
         self.walkable = main_component(free)
         self.free = free
@@ -71,14 +72,18 @@ class ObjectPlacer:
                 self.children.setdefault(f.parent, []).append(f.footprint())
 
     def obstacles(self, receptacle: str, surface: str | None, ignore: str | None = None) -> list:
-        out = [o.footprint() for o in self.house.objects
-               if o.receptacle == receptacle and o.surface == surface and o.id != ignore]
+        out = [
+            o.footprint()
+            for o in self.house.objects
+            if o.receptacle == receptacle and o.surface == surface and o.id != ignore
+        ]
         if surface == "top":
             out += self.children.get(receptacle, [])
         return out
 
-    def spot_on(self, slot: SurfaceSlot, size: list[float], ignore: str | None = None
-                ) -> tuple[list[float], float] | None:
+    def spot_on(
+        self, slot: SurfaceSlot, size: list[float], ignore: str | None = None
+    ) -> tuple[list[float], float] | None:
         """A free pose for an object of ``size`` on ``slot``, or None."""
         if not fits(slot, size):
             return None
@@ -100,8 +105,9 @@ class ObjectPlacer:
             return [x, y, z], yaw
         return None
 
-    def floor_spot(self, room_id: str, size: list[float], ignore: str | None = None
-                   ) -> tuple[list[float], float] | None:
+    def floor_spot(
+        self, room_id: str, size: list[float], ignore: str | None = None
+    ) -> tuple[list[float], float] | None:
         """A spot on the floor of ``room_id`` that is not on a walkable cell (so the object does
         not change the navigation grid), clear of furniture and objects, next to a walkable cell.
         """
@@ -111,8 +117,9 @@ class ObjectPlacer:
         if len(candidates) == 0:
             return None
         floor_fps = [f.footprint() for f in self.house.furniture if f.parent is None]
-        floor_fps += [o.footprint() for o in self.house.objects
-                      if o.receptacle == FLOOR and o.id != ignore]
+        floor_fps += [
+            o.footprint() for o in self.house.objects if o.receptacle == FLOOR and o.id != ignore
+        ]
         for idx in self.rng.permutation(len(candidates))[:40]:
             r, c = candidates[idx]
             x, y = float(self.frame.x[c]), float(self.frame.y[r])
@@ -130,8 +137,9 @@ class ObjectPlacer:
         """Add MIN_OBJECTS..MAX_OBJECTS objects, each where D is true."""
         catalog, knowledge = load_catalog(), load_placement()
         target = int(self.rng.integers(MIN_OBJECTS, MAX_OBJECTS + 1))
-        weights = np.array([math.sqrt(max(s.surface.size[0] * s.surface.size[1], 1e-3))
-                            for s in self.slots])
+        weights = np.array(
+            [math.sqrt(max(s.surface.size[0] * s.surface.size[1], 1e-3)) for s in self.slots]
+        )
         if len(self.slots) == 0:
             return
         p = weights / weights.sum()
@@ -140,9 +148,12 @@ class ObjectPlacer:
             if len(self.house.objects) >= target:
                 break
             slot = self.slots[int(self.rng.choice(len(self.slots), p=p))]
-            types = [o for o in catalog.tidyable
-                     if knowledge.D(o, slot.surface.receptacle_type, slot.room_type)
-                     and fits(slot, object_size(o))]
+            types = [
+                o
+                for o in catalog.tidyable
+                if knowledge.D(o, slot.surface.receptacle_type, slot.room_type)
+                and fits(slot, object_size(o))
+            ]
             if not types:
                 continue
             tw = np.array([1.0 / (1 + counts.get(t, 0)) ** 2 for t in types])
@@ -153,7 +164,15 @@ class ObjectPlacer:
                 continue
             pos, yaw = spot
             counts[type_name] = counts.get(type_name, 0) + 1
-            self.house.objects.append(PlacedObject(
-                id=f"{type_name}_{counts[type_name] - 1}", type=type_name,
-                room=slot.furniture.room, receptacle=slot.furniture.id, surface=slot.surface.name,
-                position=pos, yaw=yaw, size=size))
+            self.house.objects.append(
+                PlacedObject(
+                    id=f"{type_name}_{counts[type_name] - 1}",
+                    type=type_name,
+                    room=slot.furniture.room,
+                    receptacle=slot.furniture.id,
+                    surface=slot.surface.name,
+                    position=pos,
+                    yaw=yaw,
+                    size=size,
+                )
+            )

@@ -43,9 +43,7 @@ class Room:
 
     def area(self) -> float:
         p = self.polygon
-        return 0.5 * abs(
-            sum(p[i][0] * p[i - 1][1] - p[i - 1][0] * p[i][1] for i in range(len(p)))
-        )
+        return 0.5 * abs(sum(p[i][0] * p[i - 1][1] - p[i - 1][0] * p[i][1] for i in range(len(p))))
 
 
 @dataclass
@@ -127,7 +125,9 @@ class Furniture:
         for s in self.surfaces:
             if s.name == name:
                 return s
-        raise KeyError(f"{self.id} has no surface {name!r}; it has {[s.name for s in self.surfaces]}")
+        raise KeyError(
+            f"{self.id} has no surface {name!r}; it has {[s.name for s in self.surfaces]}"
+        )
 
     def surface_world(self, s: Surface) -> tuple[list[float], tuple[float, float, float, float]]:
         """World centre (x, y, z) of a surface and its world axis-aligned bounds."""
@@ -261,7 +261,8 @@ def house_from_dict(d: dict[str, Any]) -> House:
             raise HouseFormatError(f"{where}: expected an object")
         f = dict(f)
         f["surfaces"] = [
-            _build(Surface, s, f"{where}.surfaces[{j}]") for j, s in enumerate(f.get("surfaces", []))
+            _build(Surface, s, f"{where}.surfaces[{j}]")
+            for j, s in enumerate(f.get("surfaces", []))
         ]
         f["joints"] = [
             _build(Joint, s, f"{where}.joints[{j}]") for j, s in enumerate(f.get("joints", []))

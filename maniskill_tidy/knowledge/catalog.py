@@ -41,7 +41,9 @@ class Catalog:
 
 
 def _read(name: str) -> dict:
-    return json.loads(resources.files("maniskill_tidy.knowledge").joinpath("data", name).read_text())
+    return json.loads(
+        resources.files("maniskill_tidy.knowledge").joinpath("data", name).read_text()
+    )
 
 
 @lru_cache(maxsize=1)
@@ -65,3 +67,9 @@ def load_catalog() -> Catalog:
         tidyable=tuple(raw["tidyable"]),
         types=types,
     )
+
+
+@lru_cache(maxsize=1)
+def load_assets() -> dict[str, tuple[str, float, float, float]]:
+    """ProcTHOR asset id -> (object type, width x, depth y, height z), for importing houses."""
+    return {k: tuple(v) for k, v in _read("assets.json")["assets"].items()}

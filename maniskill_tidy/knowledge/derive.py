@@ -64,8 +64,8 @@ def _load(reference: Path) -> tuple[dict, dict, dict, dict]:
     return assets, annotations, receptacles, metadata
 
 
-def derive(reference: Path) -> tuple[dict, dict]:
-    """Return (catalog, placement) tables derived from ``reference``."""
+def derive(reference: Path) -> tuple[dict, dict, dict]:
+    """Return the (catalog, placement, assets) tables derived from ``reference``."""
     assets, annotations, receptacles, metadata = _load(reference)
 
     pickupable: set[str] = set()
@@ -172,13 +172,30 @@ def derive(reference: Path) -> tuple[dict, dict]:
         "min_receptacle_p": MIN_RECEPTACLE_P,
         "reasonable": reasonable,
     }
-    return catalog, placement
+    assets_table = {
+        "source": SOURCE,
+        "columns": ["objectType", "width_x", "depth_y", "height_z"],
+        "assets": {
+            v["assetId"]: [
+                t,
+                round(v["boundingBox"]["x"], 3),
+                round(v["boundingBox"]["z"], 3),
+                round(v["boundingBox"]["y"], 3),
+            ]
+            for t, variants in assets.items()
+            for v in variants
+        },
+    }
+    return catalog, placement, assets_table
 
 
-def write(catalog: dict, placement: dict, out_dir: Path) -> None:
+def write(tables: tuple[dict, dict, dict], out_dir: Path) -> None:
     """Write the tables atomically (write to a temp file, then rename)."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    for name, data in (("catalog.json", catalog), ("placement.json", placement)):
+    names = ("catalog.json", "placement.json", "assets.json")
+    for name, data in zip(names, tables, strict=True):
         tmp = out_dir / f".{name}.tmp"
-        tmp.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n")
+        tmp.write_text(
+            json.dumps(data, indent=None if name == "assets.json" else 1, sort_keys=True) + "\n"
+        )
         tmp.replace(out_dir / name)

@@ -1,0 +1,64 @@
+"""``make bench``: throughput of the loops that matter, as ratios to a same-run reference.
+
+The machines are shared and noisy, so every figure is printed next to a reference measured in
+the same run. For dataset generation the reference is a fixed pure-Python workload
+(``calibration``); the ratio "houses per calibration unit" is comparable across runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import tempfile
+import time
+from pathlib import Path
+
+
+def calibration(n: int = 2_000_000) -> float:
+    """Seconds for a fixed pure-Python loop (the same work on every machine)."""
+    start = time.perf_counter()
+    acc = 0
+    for i in range(n):
+        acc = (acc + i * i) % 1_000_003
+    return time.perf_counter() - start
+
+
+def bench_generation(houses: int, workers: int) -> dict:
+    from maniskill_tidy.tasks.dataset import generate_dataset
+
+    out = Path(tempfile.mkdtemp(prefix="bench-gen-"))
+    try:
+        ref = calibration()
+        start = time.perf_counter()
+        generate_dataset(out, houses, seed=1234, workers=workers, progress=False)
+        elapsed = time.perf_counter() - start
+        ref = (ref + calibration()) / 2
+    finally:
+        shutil.rmtree(out, ignore_errors=True)
+    rate = houses / elapsed
+    return {
+        "houses": houses,
+        "workers": workers,
+        "houses_per_s": rate,
+        "calibration_s": ref,
+        "houses_per_calibration": rate * ref,
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--houses", type=int, default=120)
+    args = parser.parse_args(argv)
+    print("dataset generation (houses + 10 meta-tasks each, written and hashed)")
+    print(f"{'workers':>7} {'houses':>6} {'houses/s':>9} {'calib s':>8} {'houses/calib':>12}")
+    for workers in (1, 2):
+        r = bench_generation(args.houses, workers)
+        print(
+            f"{r['workers']:>7} {r['houses']:>6} {r['houses_per_s']:>9.1f} "
+            f"{r['calibration_s']:>8.3f} {r['houses_per_calibration']:>12.2f}"
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

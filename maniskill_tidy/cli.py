@@ -1,0 +1,174 @@
+"""The ``maniskill-tidy`` command."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+from maniskill_tidy.knowledge import load_catalog, load_placement
+
+
+def _generate(args: argparse.Namespace) -> int:
+    from maniskill_tidy.tasks.dataset import generate_dataset
+
+    counts = tuple(int(v) for v in args.split.split(",")) if args.split else None
+    if counts is not None and len(counts) != 3:
+        raise SystemExit(f"--split {args.split!r}: expected three counts TRAIN,VAL,TEST")
+    start = time.perf_counter()
+    manifest = generate_dataset(
+        Path(args.out), args.houses, args.seed, counts, workers=args.workers
+    )
+    elapsed = time.perf_counter() - start
+    print(
+        f"wrote {args.out}: {manifest['houses']} houses {manifest['splits']}, "
+        f"tasks {manifest['tasks']}, hash {manifest['dataset_hash'][:12]}, "
+        f"{args.houses / elapsed:.1f} houses/s ({elapsed:.1f} s, {args.workers} workers)"
+    )
+    return 0
+
+
+def _validate(args: argparse.Namespace) -> int:
+    from maniskill_tidy.tasks.validate import validate_dataset
+
+    problems = validate_dataset(Path(args.dir))
+    for p in problems[: args.max_problems]:
+        print(p)
+    if len(problems) > args.max_problems:
+        print(f"... and {len(problems) - args.max_problems} more")
+    print(f"{args.dir}: {'OK' if not problems else f'{len(problems)} problems'}")
+    return 1 if problems else 0
+
+
+def _stats(args: argparse.Namespace) -> int:
+    from maniskill_tidy.tasks.stats import dataset_stats, format_stats, plot_stats
+
+    stats = dataset_stats(Path(args.dir))
+    print(format_stats(stats))
+    out = plot_stats(stats, Path(args.png or Path(args.dir) / "dataset-stats.png"))
+    if args.json:
+        Path(args.json).write_text(json.dumps(stats, indent=1) + "\n")
+    print(f"figure: {out}")
+    return 0
+
+
+def _show_house(args: argparse.Namespace) -> int:
+    from maniskill_tidy.houses.draw import draw_house
+
+    highlight, title = {}, None
+    if args.procthor:
+        from maniskill_tidy.houses.procthor import read_procthor_houses
+
+        house = next(
+            (h for i, h in enumerate(read_procthor_houses(Path(args.procthor))) if i == args.index),
+            None,
+        )
+        if house is None:
+            raise SystemExit(f"{args.procthor} has fewer than {args.index + 1} houses")
+    elif args.dataset:
+        from maniskill_tidy.tasks.dataset import load_dataset
+        from maniskill_tidy.tasks.metatask import apply_task
+
+        data = load_dataset(Path(args.dataset), args.split)
+        houses = list(data.houses.values())
+        if not 0 <= args.index < len(houses):
+            raise SystemExit(f"--index {args.index}: split {args.split} has {len(houses)} houses")
+        house = houses[args.index]
+        if args.task is not None:
+            tasks = [t for t in data.tasks if t.house_id == house.id]
+            if not 0 <= args.task < len(tasks):
+                raise SystemExit(f"--task {args.task}: {house.id} has {len(tasks)} meta-tasks")
+            task = tasks[args.task]
+            house = apply_task(house, task)
+            highlight = {m.object: "#d32f2f" for m in task.misplaced}
+            title = f"{task.id}: {task.kind}, k={task.k}: " + ", ".join(
+                f"{m.type} ({m.how})" for m in task.misplaced
+            )
+    else:
+        from maniskill_tidy.houses.generator import generate_house
+
+        house = generate_house(args.seed, args.index)
+    out = draw_house(house, Path(args.out), highlight=highlight, title=title)
+    print(
+        f"{house.id}: {len(house.rooms)} rooms {house.room_spec}, {len(house.furniture)} "
+        f"furniture, {len(house.objects)} objects -> {out}"
+    )
+    return 0
+
+
+def _knowledge(args: argparse.Namespace) -> int:
+    catalog, knowledge = load_catalog(), load_placement()
+    print(
+        f"{len(catalog.categories)} object categories, {len(catalog.pickupable)} pickupable "
+        f"({len(catalog.tidyable)} with a reasonable place), {len(catalog.receptacles)} "
+        f"receptacle types, {sum(len(v) for v in knowledge.reasonable.values())} reasonable "
+        f"(object, receptacle, room) triples"
+    )
+    if args.object:
+        locs = sorted(knowledge.locations(args.object))
+        print(f"{args.object}: " + (", ".join(f"{p} in {r}" for p, r in locs) or "nowhere"))
+    return 0
+
+
+def _derive(args: argparse.Namespace) -> int:
+    from maniskill_tidy.knowledge.derive import derive, write
+
+    out = Path(args.out or Path(__file__).parent / "knowledge" / "data")
+    write(derive(Path(args.reference)), out)
+    print(f"wrote {out}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="maniskill-tidy", description=__doc__)
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    g = sub.add_parser("generate", help="generate houses and tidy-up tasks")
+    g.add_argument("--houses", type=int, required=True)
+    g.add_argument("--seed", type=int, default=0)
+    g.add_argument("--out", required=True)
+    g.add_argument("--split", help="TRAIN,VAL,TEST house counts (default: 4:1:1 as 80/20/20)")
+    g.add_argument("--workers", type=int, default=1)
+    g.set_defaults(func=_generate)
+
+    v = sub.add_parser("validate", help="check a dataset and explain what is wrong")
+    v.add_argument("dir")
+    v.add_argument("--max-problems", type=int, default=50)
+    v.set_defaults(func=_validate)
+
+    s = sub.add_parser("dataset-stats", help="Fig. 5 statistics of a dataset, printed and drawn")
+    s.add_argument("dir")
+    s.add_argument("--png")
+    s.add_argument("--json")
+    s.set_defaults(func=_stats)
+
+    h = sub.add_parser("show-house", help="draw a house top-down as a PNG")
+    h.add_argument("--seed", type=int, default=0)
+    h.add_argument("--index", type=int, default=0, help="house index (in the split or file)")
+    h.add_argument("--dataset", help="draw a house of this dataset")
+    h.add_argument("--split", default="train")
+    h.add_argument("--task", type=int, help="with --dataset: show this meta-task's mess")
+    h.add_argument("--procthor", help="draw a house of a ProcTHOR .jsonl(.gz) file")
+    h.add_argument("--out", default="house.png")
+    h.set_defaults(func=_show_house)
+
+    k = sub.add_parser("knowledge", help="type counts; reasonable places of an object type")
+    k.add_argument("object", nargs="?")
+    k.set_defaults(func=_knowledge)
+
+    d = sub.add_parser("derive-knowledge", help="regenerate the knowledge tables (maintainers)")
+    d.add_argument("--reference", required=True, help="ProcTHOR's databases/ folder")
+    d.add_argument("--out")
+    d.set_defaults(func=_derive)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    return args.func(args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,237 @@
+"""Dataset files: seeded houses and their meta-tasks, in gzipped JSON shards with a manifest.
+
+Layout of a dataset directory::
+
+    manifest.json               schema version, seed, splits, sha256 of every shard, dataset hash
+    train/shard-0000.json.gz    {"houses": [...], "tasks": [...]} for up to SHARD_SIZE houses
+    val/...  test/...
+
+House ``i`` is generated from ``(seed, i)`` alone, and split membership is by index (train
+first), so files are byte-identical for the same arguments whatever the number of workers.
+Shards are written atomically; a rerun with the same arguments keeps finished shards (resume).
+"""
+
+from __future__ import annotations
+
+import gzip
+import hashlib
+import io
+import json
+import os
+from collections.abc import Iterator
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+from tqdm import tqdm
+
+from maniskill_tidy.houses.generator import generate_house
+from maniskill_tidy.houses.schema import SCHEMA_VERSION, House, house_from_dict
+from maniskill_tidy.tasks.metatask import MetaTask, generate_meta_tasks
+
+SHARD_SIZE = 50
+SPLITS = ("train", "val", "test")
+GENERATOR_VERSION = "1"
+
+
+class DatasetError(RuntimeError):
+    pass
+
+
+def split_counts(n_houses: int, counts: tuple[int, int, int] | None = None) -> dict[str, int]:
+    """Houses per split: explicit counts, or the paper's 80/20/20 proportions."""
+    if counts is not None:
+        if sum(counts) != n_houses or min(counts) < 0:
+            raise ValueError(f"split counts {counts} must be >= 0 and add up to {n_houses}")
+        return dict(zip(SPLITS, counts, strict=True))
+    val = test = n_houses // 6
+    return {"train": n_houses - val - test, "val": val, "test": test}
+
+
+def dumps_gz(payload: dict) -> bytes:
+    """Deterministic gzip: fixed mtime, no file name, sorted keys."""
+    raw = json.dumps(payload, sort_keys=True, separators=(",", ":")).encode()
+    buf = io.BytesIO()
+    with gzip.GzipFile(filename="", mode="wb", fileobj=buf, mtime=0, compresslevel=6) as f:
+        f.write(raw)
+    return buf.getvalue()
+
+
+def write_atomic(path: Path, data: bytes) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    tmp.write_bytes(data)
+    tmp.replace(path)
+
+
+def sha256(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def _make_shard(args: tuple[int, str, int, int]) -> tuple[str, int, int, bytes]:
+    seed, split, start, stop = args
+    houses, tasks = [], []
+    for i in range(start, stop):
+        house = generate_house(seed, i)
+        houses.append(house.to_dict())
+        tasks += [t.to_dict() for t in generate_meta_tasks(house, seed, i)]
+    payload = {
+        "schema_version": SCHEMA_VERSION,
+        "split": split,
+        "seed": seed,
+        "houses": houses,
+        "tasks": tasks,
+    }
+    return split, stop - start, len(tasks), dumps_gz(payload)
+
+
+def generate_dataset(
+    out: Path,
+    n_houses: int,
+    seed: int,
+    counts: tuple[int, int, int] | None = None,
+    workers: int = 1,
+    progress: bool = True,
+) -> dict:
+    """Generate (or resume) a dataset in ``out``; returns the manifest."""
+    out = Path(out)
+    splits = split_counts(n_houses, counts)
+    params = {
+        "houses": n_houses,
+        "seed": seed,
+        "splits": splits,
+        "generator_version": GENERATOR_VERSION,
+        "schema_version": SCHEMA_VERSION,
+    }
+    params_file = out / ".generate.json"
+    if params_file.exists() and json.loads(params_file.read_text()) != params:
+        raise DatasetError(
+            f"{out} holds a dataset made with other arguments "
+            f"({params_file.read_text().strip()}); use another --out"
+        )
+    write_atomic(params_file, json.dumps(params, sort_keys=True).encode())
+
+    jobs, start = [], 0
+    for split in SPLITS:
+        n = splits[split]
+        for k, s in enumerate(range(start, start + n, SHARD_SIZE)):
+            jobs.append(
+                (f"{split}/shard-{k:04d}.json.gz", (seed, split, s, min(s + SHARD_SIZE, start + n)))
+            )
+        start += n
+    todo = [(name, a) for name, a in jobs if not (out / name).exists()]
+    bar = tqdm(
+        total=n_houses,
+        unit="house",
+        desc="generate",
+        disable=not progress,
+        initial=n_houses - sum(a[3] - a[2] for _, a in todo),
+    )
+    if workers > 1 and len(todo) > 1:
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            for (name, _), result in zip(
+                todo, pool.map(_make_shard, [a for _, a in todo]), strict=True
+            ):
+                write_atomic(out / name, result[3])
+                bar.update(result[1])
+    else:
+        for name, a in todo:
+            result = _make_shard(a)
+            write_atomic(out / name, result[3])
+            bar.update(result[1])
+    bar.close()
+    return write_manifest(out, params, [name for name, _ in jobs])
+
+
+def write_manifest(out: Path, params: dict, names: list[str]) -> dict:
+    files = {}
+    for name in names:
+        data = (out / name).read_bytes()
+        payload = json.loads(gzip.decompress(data))
+        files[name] = {
+            "sha256": sha256(data),
+            "houses": len(payload["houses"]),
+            "tasks": len(payload["tasks"]),
+        }
+    manifest = {
+        **params,
+        "files": files,
+        "tasks": {
+            s: sum(f["tasks"] for n, f in files.items() if n.startswith(s + "/")) for s in SPLITS
+        },
+        "dataset_hash": sha256(
+            "".join(f"{n}:{f['sha256']}\n" for n, f in sorted(files.items())).encode()
+        ),
+        "source": "maniskill-tidy generate (procedural houses; knowledge derived from ProcTHOR, "
+        "Apache-2.0)",
+    }
+    write_atomic(
+        out / "manifest.json", (json.dumps(manifest, indent=1, sort_keys=True) + "\n").encode()
+    )
+    return manifest
+
+
+@dataclass
+class Dataset:
+    """A dataset split loaded into memory: houses by id and their meta-tasks."""
+
+    root: Path
+    split: str
+    manifest: dict
+    houses: dict[str, House]
+    tasks: list[MetaTask]
+
+    def episodes(self, setting: str) -> Iterator[tuple[MetaTask, int]]:
+        """Every (meta-task, start index): 10 x 5 per house, as in the paper."""
+        for task in self.tasks:
+            for j in range(len(task.starts[setting])):
+                yield task, j
+
+
+def read_manifest(root: Path) -> dict:
+    path = Path(root) / "manifest.json"
+    if not path.is_file():
+        raise DatasetError(
+            f"{root} has no manifest.json; is it a dataset made by `maniskill-tidy generate`?"
+        )
+    try:
+        manifest = json.loads(path.read_text())
+    except json.JSONDecodeError as e:
+        raise DatasetError(f"{path} is not valid JSON: {e}") from None
+    if manifest.get("schema_version") != SCHEMA_VERSION:
+        raise DatasetError(
+            f"{path}: schema_version {manifest.get('schema_version')!r}, "
+            f"expected {SCHEMA_VERSION!r}"
+        )
+    return manifest
+
+
+def read_shard(path: Path) -> dict:
+    try:
+        payload = json.loads(gzip.decompress(Path(path).read_bytes()))
+    except (OSError, EOFError, gzip.BadGzipFile) as e:
+        raise DatasetError(f"{path}: not a complete gzip file ({e})") from None
+    except json.JSONDecodeError as e:
+        raise DatasetError(f"{path}: not valid JSON inside the gzip ({e})") from None
+    for key in ("houses", "tasks"):
+        if not isinstance(payload.get(key), list):
+            raise DatasetError(f"{path}: missing the list {key!r}")
+    return payload
+
+
+def load_dataset(root: Path, split: str = "train") -> Dataset:
+    if split not in SPLITS:
+        raise ValueError(f"unknown split {split!r}; expected one of {SPLITS}")
+    root = Path(root)
+    manifest = read_manifest(root)
+    houses: dict[str, House] = {}
+    tasks: list[MetaTask] = []
+    for name in sorted(manifest["files"]):
+        if not name.startswith(split + "/"):
+            continue
+        payload = read_shard(root / name)
+        for h in payload["houses"]:
+            house = house_from_dict(h)
+            houses[house.id] = house
+        tasks += [MetaTask.from_dict(t) for t in payload["tasks"]]
+    return Dataset(root, split, manifest, houses, tasks)

@@ -1,0 +1,199 @@
+"""Tidy-up meta-tasks: misplace k objects of a tidy house, as in the paper's Section 4.
+
+Each misplaced object goes to an unreasonable place (D false) by one of three moves:
+- ``same_room_receptacle``: another receptacle in the room it was in;
+- ``other_room_receptacle``: a receptacle in another room;
+- ``floor``: dropped on the floor of its room.
+A meta-task is *Single* when every misplaced object stays in its original room and *Cross*
+when at least one changes room (the paper's definition). The goal is checkable from the spec
+alone: each misplaced object lists its original location and every surface of this house where
+it would be reasonable (the original one included, so a goal always exists).
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from maniskill_tidy.houses.generator import house_rng
+from maniskill_tidy.houses.navgrid import GridFrame, compute_free, frame_of, grid_array
+from maniskill_tidy.houses.objects import ObjectPlacer, fits
+from maniskill_tidy.houses.schema import House
+from maniskill_tidy.knowledge import FLOOR, load_placement
+from maniskill_tidy.tasks.starts import sample_starts
+from maniskill_tidy.tasks.teams import SETTINGS
+
+META_TASKS_PER_HOUSE = 10
+STARTS_PER_TASK = 5
+MOVES = ("same_room_receptacle", "other_room_receptacle", "floor")
+MOVE_P = (0.4, 0.35, 0.25)
+
+
+@dataclass
+class Location:
+    receptacle: str  # furniture id or "Floor"
+    surface: str | None
+    room: str
+    position: list[float]
+    yaw: float
+
+
+@dataclass
+class Misplacement:
+    object: str
+    type: str
+    original: Location
+    misplaced: Location
+    how: str
+    reasonable: list[list[str]]  # [[furniture id, surface name], ...] where D is true here
+
+
+@dataclass
+class MetaTask:
+    id: str
+    house_id: str
+    index: int
+    k: int
+    kind: str  # "Single" or "Cross"
+    misplaced: list[Misplacement]
+    starts: dict[str, list[list[dict]]] = field(default_factory=dict)  # setting -> 5 configs
+
+    def to_dict(self) -> dict:
+        from maniskill_tidy.houses.schema import _rounded
+
+        return _rounded(asdict(self))
+
+    @classmethod
+    def from_dict(cls, d: dict) -> MetaTask:
+        d = dict(d)
+        d["misplaced"] = [
+            Misplacement(
+                **{
+                    **m,
+                    "original": Location(**m["original"]),
+                    "misplaced": Location(**m["misplaced"]),
+                }
+            )
+            for m in d["misplaced"]
+        ]
+        return cls(**d)
+
+
+def label(misplaced: list[Misplacement]) -> str:
+    return "Cross" if any(m.original.room != m.misplaced.room for m in misplaced) else "Single"
+
+
+def reasonable_surfaces(house: House, object_type: str, size: list[float]) -> list[list[str]]:
+    knowledge = load_placement()
+    rooms = {r.id: r.type for r in house.rooms}
+    out = []
+    for f in house.furniture:
+        for s in f.surfaces:
+            if knowledge.D(object_type, s.receptacle_type, rooms[f.room]):
+                slot_ok = s.clearance is None or size[2] <= s.clearance
+                if slot_ok:
+                    out.append([f.id, s.name])
+    return out
+
+
+def _try_move(placer: ObjectPlacer, house: House, obj, how: str, rng) -> Location | None:
+    knowledge = load_placement()
+    rooms = {r.id: r.type for r in house.rooms}
+    if how == "floor":
+        spot = placer.floor_spot(obj.room, obj.size, ignore=obj.id)
+        if spot is None:
+            return None
+        return Location(FLOOR, None, obj.room, spot[0], spot[1])
+    same = how == "same_room_receptacle"
+    slots = [
+        s
+        for s in placer.slots
+        if (s.furniture.room == obj.room) == same
+        and not (s.furniture.id == obj.receptacle and s.surface.name == obj.surface)
+        and not knowledge.D(obj.type, s.surface.receptacle_type, rooms[s.furniture.room])
+        and fits(s, obj.size)
+    ]
+    for i in rng.permutation(len(slots))[:8]:
+        slot = slots[int(i)]
+        spot = placer.spot_on(slot, obj.size, ignore=obj.id)
+        if spot is not None:
+            return Location(slot.furniture.id, slot.surface.name, slot.furniture.room, *spot)
+    return None
+
+
+def generate_meta_task(house: House, seed: int, house_index: int, task_index: int) -> MetaTask:
+    """Meta-task ``task_index`` of a house; its randomness depends only on the arguments."""
+    rng = house_rng(seed, house_index, stream=1 + task_index)
+    work = copy.deepcopy(house)
+    frame, free = house_grid(work)
+    placer = ObjectPlacer(work, frame, free, rng)
+    k = int(rng.integers(1, 6))
+    multi_room = len(house.rooms) > 1
+    candidates = [o for o in work.objects]
+    order = rng.permutation(len(candidates))
+    moved: list[Misplacement] = []
+    for i in order:
+        if len(moved) == k:
+            break
+        obj = candidates[int(i)]
+        allowed = [m for m in MOVES if multi_room or m != "other_room_receptacle"]
+        p = np.array([MOVE_P[MOVES.index(m)] for m in allowed])
+        first = allowed[int(rng.choice(len(allowed), p=p / p.sum()))]
+        moves = [first] + [m for m in allowed if m != first]
+        for how in moves:
+            target = _try_move(placer, work, obj, how, rng)
+            if target is None:
+                continue
+            original = Location(obj.receptacle, obj.surface, obj.room, list(obj.position), obj.yaw)
+            obj.receptacle, obj.surface, obj.room = target.receptacle, target.surface, target.room
+            obj.position, obj.yaw = list(target.position), target.yaw
+            moved.append(
+                Misplacement(
+                    obj.id,
+                    obj.type,
+                    original,
+                    target,
+                    how,
+                    reasonable_surfaces(house, obj.type, obj.size),
+                )
+            )
+            break
+    task = MetaTask(
+        id=f"{house.id}/task_{task_index}",
+        house_id=house.id,
+        index=task_index,
+        k=len(moved),
+        kind=label(moved),
+        misplaced=moved,
+    )
+    walkable = placer.walkable
+    for name, team in SETTINGS.items():
+        task.starts[name] = [
+            sample_starts(frame, walkable, len(team), rng) for _ in range(STARTS_PER_TASK)
+        ]
+    return task
+
+
+def house_grid(house: House) -> tuple[GridFrame, np.ndarray]:
+    """The house's stored navigation grid, or a freshly computed one."""
+    if house.navgrid is not None:
+        return frame_of(house.navgrid), grid_array(house.navgrid)
+    return compute_free(house)
+
+
+def generate_meta_tasks(house: House, seed: int, house_index: int) -> list[MetaTask]:
+    return [generate_meta_task(house, seed, house_index, t) for t in range(META_TASKS_PER_HOUSE)]
+
+
+def apply_task(house: House, task: MetaTask) -> House:
+    """The house as the agents find it: misplaced objects moved to their task locations."""
+    messy = copy.deepcopy(house)
+    by_id = messy.object_by_id()
+    for m in task.misplaced:
+        o = by_id[m.object]
+        loc = m.misplaced
+        o.receptacle, o.surface, o.room = loc.receptacle, loc.surface, loc.room
+        o.position, o.yaw = list(loc.position), loc.yaw
+    return messy

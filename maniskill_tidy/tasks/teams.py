@@ -1,0 +1,35 @@
+"""Teams as capability vectors va = (Nav, Mani, Hei), after the paper's Section 5.3."""
+
+from __future__ import annotations
+
+Capability = tuple[int, int, int]
+
+LOW_SCOUT: Capability = (1, 0, 0)  # navigation only, camera at about 0.22 m
+HIGH_SCOUT: Capability = (1, 0, 1)  # navigation only, camera at about 0.9 m
+MANIPULATOR: Capability = (1, 1, 1)  # navigation and manipulation, camera at about 0.9 m
+
+SETTINGS: dict[str, tuple[Capability, ...]] = {
+    "I": (LOW_SCOUT, HIGH_SCOUT, MANIPULATOR),
+    "II": (LOW_SCOUT, HIGH_SCOUT, MANIPULATOR, MANIPULATOR),
+}
+
+
+def team(setting: str | list | tuple) -> tuple[Capability, ...]:
+    """A preset name ("I", "II") or a list of capability triples, checked."""
+    if isinstance(setting, str):
+        try:
+            return SETTINGS[setting]
+        except KeyError:
+            raise ValueError(
+                f"unknown setting {setting!r}; expected one of {sorted(SETTINGS)} "
+                "or a list of (Nav, Mani, Hei) triples"
+            ) from None
+    members = tuple(tuple(int(v) for v in member) for member in setting)
+    for i, member in enumerate(members):
+        if len(member) != 3 or any(v not in (0, 1) for v in member):
+            raise ValueError(f"team member {i}: {member} is not a (Nav, Mani, Hei) triple of 0/1")
+        if member[0] != 1:
+            raise ValueError(f"team member {i}: {member} cannot navigate; every agent needs Nav=1")
+    if not members:
+        raise ValueError("a team needs at least one agent")
+    return members  # type: ignore[return-value]

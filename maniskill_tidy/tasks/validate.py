@@ -1,0 +1,242 @@
+"""Check a dataset against everything it claims, and say in words what is wrong.
+
+Nothing in a dataset is trusted: hashes are recomputed, the navigation grid is recomputed from
+the geometry, D is re-evaluated for every placed and every misplaced object, labels and goals
+are re-derived, and every start and goal is checked for reachability.
+"""
+
+from __future__ import annotations
+
+import itertools
+from pathlib import Path
+
+from tqdm import tqdm
+
+from maniskill_tidy.houses.furnish import overlaps
+from maniskill_tidy.houses.navgrid import (
+    REACH,
+    blocks_navigation,
+    components,
+    compute_free,
+    frame_of,
+    grid_array,
+    main_component,
+    reach_cells,
+)
+from maniskill_tidy.houses.objects import surface_slots
+from maniskill_tidy.houses.schema import CELL, House, HouseFormatError, house_from_dict
+from maniskill_tidy.knowledge import FLOOR, load_placement
+from maniskill_tidy.tasks.dataset import DatasetError, read_manifest, read_shard, sha256
+from maniskill_tidy.tasks.metatask import MetaTask, label, reasonable_surfaces
+from maniskill_tidy.tasks.starts import ROTATIONS
+from maniskill_tidy.tasks.teams import SETTINGS
+
+TOL = 1e-3
+
+
+def _slot_of(house: House, receptacle: str, surface: str | None):
+    for slot in surface_slots(house):
+        if slot.furniture.id == receptacle and slot.surface.name == surface:
+            return slot
+    return None
+
+
+def check_house(house: House) -> list[str]:
+    problems = []
+    where = house.id
+    frame, free = compute_free(house)
+    if house.navgrid is None:
+        problems.append(f"{where}: no navigation grid")
+    else:
+        stored = grid_array(house.navgrid)
+        if stored.shape != free.shape:
+            problems.append(
+                f"{where}: navigation grid shape {stored.shape}, geometry implies {free.shape}"
+            )
+        elif (stored != free).any():
+            problems.append(
+                f"{where}: navigation grid differs from the geometry at "
+                f"{int((stored != free).sum())} cells"
+            )
+    _, n = components(free)
+    if n != 1:
+        problems.append(f"{where}: free cells form {n} separate areas; every room must connect")
+    walkable = main_component(free)
+    floor_pieces = [f for f in house.furniture if blocks_navigation(f)]
+    for a, b in itertools.combinations(floor_pieces, 2):
+        if overlaps(a.footprint(), b.footprint(), -TOL):
+            problems.append(f"{where}: furniture {a.id} and {b.id} overlap")
+    knowledge = load_placement()
+    rooms = {r.id: r.type for r in house.rooms}
+    for slot in surface_slots(house):
+        if not reach_cells(frame, walkable, slot.bounds).any():
+            problems.append(
+                f"{where}: {slot.furniture.id}/{slot.surface.name} is out of reach "
+                f"of every free cell"
+            )
+    by_surface: dict[tuple, list] = {}
+    for o in house.objects:
+        slot = _slot_of(house, o.receptacle, o.surface)
+        if slot is None:
+            problems.append(f"{where}: object {o.id} rests on unknown {o.receptacle}/{o.surface}")
+            continue
+        if not knowledge.D(o.type, slot.surface.receptacle_type, rooms[o.room]):
+            problems.append(
+                f"{where}: object {o.id} starts unreasonable: "
+                f"{slot.surface.receptacle_type} in {rooms[o.room]}"
+            )
+        fp = o.footprint()
+        b = slot.bounds
+        if fp[0] < b[0] - TOL or fp[1] < b[1] - TOL or fp[2] > b[2] + TOL or fp[3] > b[3] + TOL:
+            problems.append(f"{where}: object {o.id} sticks out of {o.receptacle}/{o.surface}")
+        for other in by_surface.get((o.receptacle, o.surface), []):
+            if overlaps(fp, other.footprint(), -TOL):
+                problems.append(f"{where}: objects {o.id} and {other.id} interpenetrate")
+        by_surface.setdefault((o.receptacle, o.surface), []).append(o)
+        if not reach_cells(frame, walkable, fp).any():
+            problems.append(f"{where}: object {o.id} is out of reach")
+    return problems
+
+
+def check_task(house: House, task: MetaTask) -> list[str]:
+    where = task.id
+    problems = []
+    if not 1 <= task.k <= 5 or task.k != len(task.misplaced):
+        problems.append(
+            f"{where}: k={task.k} with {len(task.misplaced)} misplaced objects; "
+            "expected k in 1..5 equal to their number"
+        )
+    if task.kind != label(task.misplaced):
+        problems.append(f"{where}: labelled {task.kind} but objects say {label(task.misplaced)}")
+    knowledge = load_placement()
+    rooms = {r.id: r.type for r in house.rooms}
+    objects = house.object_by_id()
+    frame, free = frame_of(house.navgrid), grid_array(house.navgrid)
+    walkable = main_component(free)
+    for m in task.misplaced:
+        o = objects.get(m.object)
+        if o is None or o.type != m.type:
+            problems.append(f"{where}: {m.object} ({m.type}) is not an object of {house.id}")
+            continue
+        if (m.original.receptacle, m.original.surface) != (o.receptacle, o.surface):
+            problems.append(f"{where}: {m.object} original location differs from the house")
+        loc = m.misplaced
+        if loc.room not in rooms:
+            problems.append(f"{where}: {m.object} moved to unknown room {loc.room}")
+            continue
+        if loc.receptacle == FLOOR:
+            rtype = FLOOR
+            fp_reach = CELL * 1.5
+        else:
+            slot = _slot_of(house, loc.receptacle, loc.surface)
+            if slot is None:
+                problems.append(
+                    f"{where}: {m.object} moved to unknown {loc.receptacle}/{loc.surface}"
+                )
+                continue
+            rtype, fp_reach = slot.surface.receptacle_type, REACH
+        if knowledge.D(m.type, rtype, rooms[loc.room]):
+            problems.append(
+                f"{where}: {m.object} 'misplaced' on {rtype} in {rooms[loc.room]}, "
+                "where D is true: it is not misplaced"
+            )
+        moved = loc.room != m.original.room
+        if (m.how == "other_room_receptacle") != moved:
+            problems.append(f"{where}: {m.object} move '{m.how}' does not match its rooms")
+        x, y = loc.position[0], loc.position[1]
+        w, d = o.size[0], o.size[1]
+        if not reach_cells(
+            frame, walkable, (x - w / 2, y - d / 2, x + w / 2, y + d / 2), fp_reach
+        ).any():
+            problems.append(f"{where}: {m.object} at its misplaced location is out of reach")
+        expected = reasonable_surfaces(house, m.type, o.size)
+        if sorted(map(tuple, m.reasonable)) != sorted(map(tuple, expected)):
+            problems.append(f"{where}: {m.object} goal set differs from what D gives in this house")
+        if not m.reasonable:
+            problems.append(f"{where}: {m.object} has no reasonable location in this house")
+    for setting, team in SETTINGS.items():
+        configs = task.starts.get(setting)
+        if not configs:
+            problems.append(f"{where}: no start configurations for setting {setting}")
+            continue
+        for j, config in enumerate(configs):
+            cells = [tuple(a["cell"]) for a in config]
+            if len(config) != len(team):
+                problems.append(
+                    f"{where}: setting {setting} start {j} has {len(config)} agents, "
+                    f"the team has {len(team)}"
+                )
+            if len(set(cells)) != len(cells):
+                problems.append(f"{where}: setting {setting} start {j}: agents share a cell")
+            for a in config:
+                r, c = a["cell"]
+                inside = 0 <= r < walkable.shape[0] and 0 <= c < walkable.shape[1]
+                if not inside or not walkable[r, c]:
+                    problems.append(
+                        f"{where}: setting {setting} start {j}: cell {(r, c)} is not "
+                        "free and connected"
+                    )
+                if a["rotation"] not in ROTATIONS:
+                    problems.append(f"{where}: rotation {a['rotation']} not in {ROTATIONS}")
+    return problems
+
+
+def validate_dataset(root: Path, progress: bool = True, deep: bool = True) -> list[str]:
+    """All problems found in the dataset at ``root`` (empty when it is sound)."""
+    root = Path(root)
+    try:
+        manifest = read_manifest(root)
+    except DatasetError as e:
+        return [str(e)]
+    problems = []
+    listed = set(manifest.get("files", {}))
+    on_disk = {str(p.relative_to(root)) for p in root.glob("*/shard-*.json.gz")}
+    for name in sorted(on_disk - listed):
+        problems.append(f"{name}: shard on disk but not in the manifest")
+    recomputed = sha256(
+        "".join(f"{n}:{f['sha256']}\n" for n, f in sorted(manifest["files"].items())).encode()
+    )
+    if recomputed != manifest.get("dataset_hash"):
+        problems.append("manifest.json: dataset_hash does not match the listed file hashes")
+    for name in tqdm(sorted(listed), desc="validate", unit="shard", disable=not progress):
+        path = root / name
+        if not path.is_file():
+            problems.append(f"{name}: listed in the manifest but missing")
+            continue
+        data = path.read_bytes()
+        entry = manifest["files"][name]
+        if sha256(data) != entry["sha256"]:
+            problems.append(f"{name}: sha256 differs from the manifest (file changed or truncated)")
+        try:
+            payload = read_shard(path)
+        except DatasetError as e:
+            problems.append(str(e))
+            continue
+        if len(payload["houses"]) != entry["houses"] or len(payload["tasks"]) != entry["tasks"]:
+            problems.append(
+                f"{name}: holds {len(payload['houses'])} houses and "
+                f"{len(payload['tasks'])} tasks, the manifest says {entry['houses']} "
+                f"and {entry['tasks']}"
+            )
+        houses = {}
+        for i, h in enumerate(payload["houses"]):
+            try:
+                house = house_from_dict(h)
+            except HouseFormatError as e:
+                problems.append(f"{name}: houses[{i}]: {e}")
+                continue
+            houses[house.id] = house
+            if deep:
+                problems += [f"{name}: {p}" for p in check_house(house)]
+        for i, t in enumerate(payload["tasks"]):
+            try:
+                task = MetaTask.from_dict(t)
+            except (TypeError, KeyError) as e:
+                problems.append(f"{name}: tasks[{i}] malformed: {e}")
+                continue
+            house = houses.get(task.house_id)
+            if house is None:
+                problems.append(f"{name}: task {task.id} refers to unknown house {task.house_id}")
+                continue
+            problems += [f"{name}: {p}" for p in check_task(house, task)]
+    return problems
