@@ -38,7 +38,9 @@ stamp="$VENV/.installed-$(cat pyproject.toml constraints.txt | sha1sum | cut -c1
 if [ ! -f "$stamp" ]; then
   echo "[setup] pip install -e .[dev] (constraints.txt pins the CPU torch)"
   "$VENV/bin/pip" install -q --upgrade pip
-  "$VENV/bin/pip" install -q -c constraints.txt -e ".[dev]"
+  # pipefail keeps pip's exit status; the filter only drops this machine's local-index notices.
+  "$VENV/bin/pip" install -q -c constraints.txt -e ".[dev]" 2>&1 \
+    | { grep -v -e "is ignored: it is neither a file nor a directory" || true; }
   rm -f "$VENV"/.installed-*
   touch "$stamp"
 fi

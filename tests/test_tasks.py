@@ -185,3 +185,10 @@ def test_sha256_helper_matches_manifest(small_dataset):
     manifest = json.loads((small_dataset / "manifest.json").read_text())
     name, entry = next(iter(manifest["files"].items()))
     assert sha256((small_dataset / name).read_bytes()) == entry["sha256"]
+
+
+def test_paper_sized_dataset_validates(tmp_path):
+    """The paper's 120 houses (80/20/20): every house and task passes every check."""
+    manifest = generate_dataset(tmp_path / "d120", 120, seed=0, progress=False, workers=2)
+    assert manifest["tasks"] == {"train": 800, "val": 200, "test": 200}
+    assert validate_dataset(tmp_path / "d120", progress=False) == []

@@ -24,7 +24,13 @@ from maniskill_tidy.houses.navgrid import (
     reach_cells,
 )
 from maniskill_tidy.houses.objects import surface_slots
-from maniskill_tidy.houses.schema import CELL, House, HouseFormatError, house_from_dict
+from maniskill_tidy.houses.schema import (
+    CELL,
+    House,
+    HouseFormatError,
+    house_from_dict,
+    rotated_bounds,
+)
 from maniskill_tidy.knowledge import FLOOR, load_placement
 from maniskill_tidy.tasks.dataset import DatasetError, read_manifest, read_shard, sha256
 from maniskill_tidy.tasks.metatask import MetaTask, label, reasonable_surfaces
@@ -143,11 +149,8 @@ def check_task(house: House, task: MetaTask) -> list[str]:
         moved = loc.room != m.original.room
         if (m.how == "other_room_receptacle") != moved:
             problems.append(f"{where}: {m.object} move '{m.how}' does not match its rooms")
-        x, y = loc.position[0], loc.position[1]
-        w, d = o.size[0], o.size[1]
-        if not reach_cells(
-            frame, walkable, (x - w / 2, y - d / 2, x + w / 2, y + d / 2), fp_reach
-        ).any():
+        footprint = rotated_bounds(loc.position, o.size[0], o.size[1], loc.yaw)
+        if not reach_cells(frame, walkable, footprint, fp_reach).any():
             problems.append(f"{where}: {m.object} at its misplaced location is out of reach")
         expected = reasonable_surfaces(house, m.type, o.size)
         if sorted(map(tuple, m.reasonable)) != sorted(map(tuple, expected)):
