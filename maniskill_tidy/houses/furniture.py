@@ -4,6 +4,11 @@ Sizes are in the range of ProcTHOR's assets (see ``knowledge/data/catalog.json``
 are typed with the receptacle type D judges, so a dresser's top is a "Dresser" and its drawers
 are "Drawer"s, a sink cabinet has a "Sink" basin, a "CounterTop" and a "Cabinet" inside.
 Hinged doors are revolute joints about +z at a front edge; drawers are prismatic along +y.
+
+Stances follow ProcTHOR's placement annotations (``onEdge``/``inCorner``/``onWall`` in
+``catalog.json``); tables, chairs, stools and ottomans stand in the middle of the room, as
+ProcTHOR's object groups (a dining table with chairs) put them, although the per-type
+annotation marks them as edge/corner pieces.
 """
 
 from __future__ import annotations

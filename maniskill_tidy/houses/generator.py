@@ -6,7 +6,6 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import asdict
 
 import numpy as np
@@ -109,7 +108,3 @@ def generate_house(
         house.navgrid = frame.to_navgrid(free)
         return house
     raise GenerationError(f"house {index} (seed {seed}, rooms {room_spec}): {last_error}")
-
-
-def yaw_degrees(yaw: float) -> int:
-    return int(round(math.degrees(yaw))) % 360
