@@ -32,9 +32,10 @@ def house_rng(seed: int, index: int, stream: int = 0) -> np.random.Generator:
     return np.random.default_rng(np.random.SeedSequence([seed, index, stream]))
 
 
-def _lights(house: House) -> list[Light]:
+def room_lights(house: House) -> list[Light]:
+    """Ceiling lights: one per room, two along the long side of rooms over 20 m^2."""
     lights = []
-    height = min(w.height for w in house.walls) - 0.1
+    height = min((w.height for w in house.walls), default=2.5) - 0.1
     for room in house.rooms:
         x0, y0, x1, y1 = room.bounds()
         n = 2 if room.area() > 20 else 1
@@ -104,7 +105,7 @@ def generate_house(
         if len(house.objects) < MIN_OBJECTS:
             last_error = f"only {len(house.objects)} objects fit"
             continue
-        house.lights = _lights(house)
+        house.lights = room_lights(house)
         house.navgrid = frame.to_navgrid(free)
         return house
     raise GenerationError(f"house {index} (seed {seed}, rooms {room_spec}): {last_error}")

@@ -18,8 +18,9 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from maniskill_tidy.houses.furniture import parts_for, top
+from maniskill_tidy.houses.generator import room_lights
 from maniskill_tidy.houses.navgrid import compute_free
-from maniskill_tidy.houses.schema import Door, Furniture, House, Light, PlacedObject, Room, Wall
+from maniskill_tidy.houses.schema import Door, Furniture, House, PlacedObject, Room, Wall
 from maniskill_tidy.knowledge import FLOOR, ROOM_TYPES, load_catalog
 from maniskill_tidy.knowledge.catalog import load_assets
 
@@ -149,12 +150,7 @@ def import_house(d: dict, house_id: str) -> House:
     )
     for i, o in enumerate(d.get("objects", [])):
         _import_object(house, o, f"{where}: objects[{i}]", parent=None)
-    height = min((w.height for w in wall_list), default=2.5) - 0.1
-    for r in rooms:
-        x0, y0, x1, y1 = r.bounds()
-        house.lights.append(
-            Light(f"light_{len(house.lights)}", r.id, [(x0 + x1) / 2, (y0 + y1) / 2, height])
-        )
+    house.lights = room_lights(house)
     frame, free = compute_free(house)
     house.navgrid = frame.to_navgrid(free)
     return house
