@@ -5,14 +5,11 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-import matplotlib
+from matplotlib.patches import Patch, Polygon, Rectangle
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-from matplotlib.patches import Patch, Polygon, Rectangle  # noqa: E402
-
-from maniskill_tidy.houses.navgrid import grid_array, solid_wall_segments  # noqa: E402
-from maniskill_tidy.houses.schema import House  # noqa: E402
+from maniskill_tidy.houses.navgrid import grid_array, solid_wall_segments
+from maniskill_tidy.houses.schema import House
+from maniskill_tidy.plotting import plt, save_figure
 
 ROOM_COLORS = {
     "Kitchen": "#f6d5a8",
@@ -129,12 +126,7 @@ def draw_house(
         f"furniture, {len(house.objects)} objects (dots: free 0.25 m cells)",
         fontsize=9,
     )
-    fig.tight_layout()
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=130)
-    plt.close(fig)
-    return out
+    return save_figure(fig, out, dpi=130)
 
 
 def _rect(ax, center, w, d, yaw, fc, alpha, z) -> None:

@@ -5,12 +5,8 @@ from __future__ import annotations
 from collections import Counter
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-
-from maniskill_tidy.tasks.dataset import SPLITS, read_manifest, read_shard  # noqa: E402
+from maniskill_tidy.plotting import plt, save_figure
+from maniskill_tidy.tasks.dataset import SPLITS, read_manifest, read_shard
 
 
 def dataset_stats(root: Path) -> dict:
@@ -94,9 +90,4 @@ def plot_stats(stats: dict, out: Path) -> Path:
         f"(dataset {stats['dataset_hash'][:12]})",
         fontsize=9,
     )
-    fig.tight_layout()
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=120)
-    plt.close(fig)
-    return out
+    return save_figure(fig, out, dpi=120)
