@@ -48,7 +48,15 @@ def bench_generation(houses: int, workers: int) -> dict:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--houses", type=int, default=120)
+    parser.add_argument("--only", choices=("generation", "env"), default=None)
     args = parser.parse_args(argv)
+    if args.only != "generation":
+        from maniskill_tidy.envs.benchmark import bench_env, report
+
+        print(report([bench_env("I"), bench_env("II")]))
+        print()
+    if args.only == "env":
+        return 0
     print("dataset generation (houses + 10 meta-tasks each, written and hashed)")
     print(f"{'workers':>7} {'houses':>6} {'houses/s':>9} {'calib s':>8} {'houses/calib':>12}")
     for workers in (1, 2):

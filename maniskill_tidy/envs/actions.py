@@ -1,0 +1,125 @@
+"""The paper's discrete actions and what each one does.
+
+Indices follow the paper's order; a navigation-only agent's action space is ``Discrete(8)``
+(``MoveAhead`` .. ``Stop``), a manipulator's ``Discrete(11)``.
+
+Rules, applied to the agents one after the other in team order within a step:
+
+- ``MoveAhead`` / ``MoveRight`` / ``MoveLeft`` move the base one 0.25 m grid cell forward, right
+  or left of its heading, without turning. The move happens only if the target cell is free on
+  the house's navigation grid (a disc of radius 0.2 m fits there, clear of walls and furniture)
+  and no other robot stands on it (robots earlier in the team order have already moved this
+  step). A blocked move leaves the robot where it is and is reported as failed with the reason.
+- ``RotateRight`` / ``RotateLeft`` turn the base by 90 degrees (right = clockwise).
+- ``LookUp`` / ``LookDown`` tilt the camera by 30 degrees within [-30, 60] degrees
+  (positive looks down, as AI2-THOR's horizon); beyond the bound the action fails.
+- ``Stop`` ends the agent's episode: later actions of a stopped agent are ignored (not counted
+  as steps) and its robot stays where it is. The episode ends when every agent has stopped.
+- ``PickUp`` takes one object into the empty gripper. Candidates are objects that cover at
+  least ``MIN_PIXELS`` pixels of the agent's current instance segmentation and whose centre is
+  within ``REACH`` (1.5 m, horizontally) of the robot's centre; the one covering most pixels is
+  taken. A target can be named instead (``Targeted(Action.PickUp, "Apple_0")``); it must pass
+  the same visibility and reach tests.
+- ``PutDown`` places the held object on or in a receptacle surface. Candidates are the surfaces
+  of furniture (or of its door or drawer link) visible with ``MIN_PIXELS`` pixels, whose centre
+  lies within reach and projects into the image; they are tried in order of how close that
+  projection is to the image centre (what the camera looks at), and the first one with room for
+  the object gets it, at the free spot nearest to the robot. A surface can be named
+  (``Targeted(Action.PutDown, "CounterTop_2/top")``, or just the furniture id). The object is
+  then released and physics settles it; if it sinks (the pose was not stable) the action is
+  reported as failed and the object stays where physics left it.
+- ``Drop`` releases the held object where the gripper holds it; physics lets it fall, and it then
+  counts as lying wherever it came to rest (a surface, or the floor).
+
+Every failure is named in ``info["failed"][agent]``; a failed action still costs a step.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import IntEnum
+
+
+class Action(IntEnum):
+    MoveAhead = 0
+    MoveRight = 1
+    MoveLeft = 2
+    RotateRight = 3
+    RotateLeft = 4
+    LookUp = 5
+    LookDown = 6
+    Stop = 7
+    PickUp = 8
+    PutDown = 9
+    Drop = 10
+
+
+NAVIGATION_ACTIONS = 8  # MoveAhead .. Stop
+MANIPULATION_ACTIONS = 11  # .. PickUp, PutDown, Drop
+STEP = 0.25  # metres per move
+TURN = 90  # degrees per rotation
+LOOK = 30  # degrees per look step
+HORIZON_RANGE = (-30, 60)
+REACH = 1.5  # metres, horizontal, from the robot's centre
+MIN_PIXELS = 20  # an instance covering fewer pixels than this is not "visible"
+MAX_STEPS = 300
+
+
+@dataclass(frozen=True)
+class Targeted:
+    """An action with a named target: an object id, a furniture id or "furniture/surface"."""
+
+    action: int
+    target: str
+
+
+@dataclass
+class AgentState:
+    name: str
+    capability: tuple[int, int, int]
+    cell: tuple[int, int]  # (row, col) on the navigation grid
+    rotation: int  # degrees counter-clockwise from +x: 0, 90, 180, 270
+    horizon: int = 0  # camera pitch in degrees, positive looks down
+    held: str | None = None
+    stopped: bool = False
+    steps: int = 0
+    failures: list[str] = field(default_factory=list)
+
+    @property
+    def manipulator(self) -> bool:
+        return bool(self.capability[1])
+
+    @property
+    def n_actions(self) -> int:
+        return MANIPULATION_ACTIONS if self.manipulator else NAVIGATION_ACTIONS
+
+
+_HEADING = {0: (0, 1), 90: (1, 0), 180: (0, -1), 270: (-1, 0)}  # rotation -> (d_row, d_col)
+
+
+def move_target(state: AgentState, action: Action) -> tuple[int, int]:
+    """The cell a move action aims at."""
+    offset = {Action.MoveAhead: 0, Action.MoveLeft: 90, Action.MoveRight: -90}[action]
+    dr, dc = _HEADING[(state.rotation + offset) % 360]
+    return state.cell[0] + dr, state.cell[1] + dc
+
+
+def parse_action(value, n_actions: int, agent: str) -> tuple[Action, str | None]:
+    """An int, a NumPy integer or a :class:`Targeted`, checked against the agent's space."""
+    target = None
+    if isinstance(value, Targeted):
+        value, target = value.action, value.target
+    try:
+        index = int(value)
+    except (TypeError, ValueError):
+        raise TypeError(
+            f"action for {agent} is {value!r}; expected an int in [0, {n_actions}) "
+            "or a Targeted(action, target)"
+        ) from None
+    if not 0 <= index < n_actions or index != value:
+        names = ", ".join(f"{a.value}={a.name}" for a in list(Action)[:n_actions])
+        raise ValueError(f"action {value!r} for {agent} is out of range; its actions are {names}")
+    action = Action(index)
+    if target is not None and action not in (Action.PickUp, Action.PutDown):
+        raise ValueError(f"{agent}: only PickUp and PutDown take a target, not {action.name}")
+    return action, target

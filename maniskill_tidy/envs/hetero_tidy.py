@@ -1,0 +1,463 @@
+"""HeteroTidy-v1: a heterogeneous robot team tidies up a multi-room house (the paper's task).
+
+A ManiSkill3 ``BaseEnv``: ``_load_scene`` builds the episode's house (only when the house
+changes) and the team's robots, ``_initialize_episode`` lays out the task's misplaced objects and
+the start poses, ``evaluate`` judges every misplaced object with D(o, p, r). Actions are a
+``Dict`` of per-agent ``Discrete`` spaces with the rules of ``envs/actions.py``.
+
+The simulation runs on the CPU, one house per env (houses differ per episode), so ``num_envs``
+is 1 and, as gymnasium's single-env API (and ManiSkill's ``CPUGymWrapper``) expect,
+observations are NumPy arrays without a batch dimension. Per agent they hold:
+
+- ``rgb`` (H, W, 3) uint8; ``depth`` (H, W) float32 metres along the optical axis, 0 where
+  nothing was hit; ``segmentation`` (H, W) int32 instance ids (``env.instances`` maps them to
+  kind, type and id; 0 is empty space);
+- ``pose`` (x, y, rotation in degrees), ``intrinsics`` (3, 3) and ``extrinsics`` (4, 4, world
+  to OpenCV camera), ``capability`` (Nav, Mani, Hei), ``held`` (segmentation id of the held
+  object, 0 if none).
+
+``obs_mode`` picks the images as in ManiSkill ("rgb+depth+segmentation", "rgb", "depth", any
+``+`` combination, or "none").
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from functools import cached_property
+
+import gymnasium as gym
+import numpy as np
+import sapien
+from gymnasium.utils import seeding
+from mani_skill.envs.sapien_env import BaseEnv
+from mani_skill.sensors.camera import CameraConfig
+from mani_skill.utils.registration import register_env
+
+from maniskill_tidy import ENV_ID, register_gym
+from maniskill_tidy.envs.actions import (
+    HORIZON_RANGE,
+    LOOK,
+    MAX_STEPS,
+    TURN,
+    Action,
+    AgentState,
+    move_target,
+    parse_action,
+)
+from maniskill_tidy.envs.episodes import Episode, EpisodeSet
+from maniskill_tidy.envs.manipulation import Manipulation
+from maniskill_tidy.envs.robots import build_robot, robot_kind, robot_pose
+from maniskill_tidy.houses.schema import House
+from maniskill_tidy.knowledge import FLOOR, load_placement
+from maniskill_tidy.sim.house_scene import HouseScene, Instance
+from maniskill_tidy.tasks.metatask import apply_task
+from maniskill_tidy.tasks.teams import team as parse_team
+
+QUALITIES = ("fast", "high")
+SEG_MAX = 2**15 - 1  # the render shader writes instance ids as int16
+FAR = 30.0  # metres, camera far plane
+LIMIT = 1e4  # bound of poses (m) and camera matrices in the observation space
+
+
+def default_render_backend() -> str:
+    """ "gpu" when SAPIEN finds a CUDA device to render with, else the CPU (lavapipe) backend."""
+    try:
+        sapien.Device("cuda")
+        return "gpu"
+    except RuntimeError:
+        return "cpu"
+
+
+gym.registry.pop(ENV_ID, None)  # the lazy entry from maniskill/__init__; register_env adds it
+
+
+@register_env(ENV_ID, max_episode_steps=None)
+class HeteroTidyEnv(BaseEnv):
+    SUPPORTED_OBS_MODES = ("rgb+depth+segmentation", "any_textures", "none")
+    SUPPORTED_REWARD_MODES = ("dense", "sparse", "none")
+    metadata = {"render_modes": ["rgb_array", "sensors", "all"], "render_fps": 5}
+
+    def __init__(
+        self,
+        *args,
+        setting: str | list = "I",
+        dataset: str | None = None,
+        split: str = "train",
+        task_type: str = "all",
+        episode: int | str | None = None,
+        camera_size: tuple[int, int] = (224, 224),
+        camera_fov: float = 90.0,
+        quality: str = "fast",
+        render_size: tuple[int, int] = (640, 480),
+        max_steps: int = MAX_STEPS,
+        **kwargs,
+    ) -> None:
+        if quality not in QUALITIES:
+            raise ValueError(f"quality {quality!r} is not one of {QUALITIES}")
+        if kwargs.get("num_envs", 1) != 1:
+            raise ValueError("HeteroTidy-v1 simulates one house per env: num_envs must be 1")
+        self.team = parse_team(setting)
+        self.setting = setting if isinstance(setting, str) else None
+        self.agent_names = [f"agent_{i}" for i in range(len(self.team))]
+        self.kinds = [robot_kind(c) for c in self.team]
+        self.episodes = EpisodeSet(dataset, split, task_type, self.setting, self.team)
+        self.fixed_episode = episode
+        self.camera_size, self.camera_fov = tuple(camera_size), float(camera_fov)
+        self.render_size, self.max_steps = tuple(render_size), int(max_steps)
+        self.quality = quality
+        self.knowledge = load_placement()
+        self.hs: HouseScene | None = None
+        self._episode: Episode | None = None
+        self._last_seg: dict[str, np.ndarray] = {}
+        kwargs.setdefault("render_backend", default_render_backend())
+        kwargs.setdefault("obs_mode", "rgb+depth+segmentation")
+        kwargs["robot_uids"] = "none"
+        kwargs["enable_shadow"] = quality == "high"
+        super().__init__(*args, **kwargs)
+        self.action_space = gym.spaces.Dict(
+            {
+                n: gym.spaces.Discrete(s.n_actions)
+                for n, s in zip(self.agent_names, self.agents, strict=True)
+            }
+        )
+        self.single_action_space = self.action_space
+
+    # ------------------------------------------------------------------ spaces
+    @cached_property
+    def single_observation_space(self) -> gym.spaces.Dict:
+        return self.observation_space
+
+    @cached_property
+    def observation_space(self) -> gym.spaces.Dict:
+        h, w = self.camera_size[1], self.camera_size[0]
+        visual = self.obs_mode_struct.visual
+        per_agent = {}
+        if visual.rgb:
+            per_agent["rgb"] = gym.spaces.Box(0, 255, (h, w, 3), np.uint8)
+        if visual.depth:
+            per_agent["depth"] = gym.spaces.Box(0.0, FAR, (h, w), np.float32)
+        if visual.segmentation:
+            per_agent["segmentation"] = gym.spaces.Box(0, SEG_MAX, (h, w), np.int32)
+        per_agent |= {
+            "pose": gym.spaces.Box(
+                np.array([-LIMIT, -LIMIT, 0.0], np.float32),
+                np.array([LIMIT, LIMIT, 360.0], np.float32),
+            ),
+            "intrinsics": gym.spaces.Box(-LIMIT, LIMIT, (3, 3), np.float32),
+            "extrinsics": gym.spaces.Box(-LIMIT, LIMIT, (4, 4), np.float32),
+            "capability": gym.spaces.MultiBinary(3),
+            "held": gym.spaces.Box(0, SEG_MAX, (), np.int32),
+        }
+        return gym.spaces.Dict({n: gym.spaces.Dict(per_agent) for n in self.agent_names})
+
+    # ------------------------------------------------------------------ scene
+    def _load_scene(self, options: dict) -> None:
+        house = self.episodes.houses[self._episode.house_id]
+        self.hs = HouseScene(self.scene, house, shadows=self.quality == "high")
+        self.manipulation = Manipulation(self.hs)
+        self.robot_actors, self.robots = [], []
+        for name, kind in zip(self.agent_names, self.kinds, strict=True):
+            actor = build_robot(self.scene, name, kind)
+            entity = actor._objs[0]
+            self.robot_actors.append(actor)
+            self.robots.append(entity)
+            self.hs.instances[entity.per_scene_id] = Instance(
+                entity.per_scene_id, "robot", kind.name, name
+            )
+
+    def _load_lighting(self, options: dict) -> None:
+        """Lights come with the house (``HouseScene``)."""
+
+    @property
+    def _default_sensor_configs(self) -> list[CameraConfig]:
+        w, h = self.camera_size
+        return [
+            CameraConfig(
+                uid=name,
+                pose=sapien.Pose(p=[kind.camera_ahead, 0.0, kind.camera_height]),
+                width=w,
+                height=h,
+                fov=math.radians(self.camera_fov),
+                near=0.02,
+                far=FAR,
+                mount=actor,
+            )
+            for name, kind, actor in zip(
+                self.agent_names, self.kinds, self.robot_actors, strict=True
+            )
+        ]
+
+    @property
+    def _default_human_render_camera_configs(self) -> CameraConfig:
+        house = self.hs.house
+        xs = [p[0] for r in house.rooms for p in r.polygon]
+        ys = [p[1] for r in house.rooms for p in r.polygon]
+        cx, cy = (min(xs) + max(xs)) / 2, (min(ys) + max(ys)) / 2
+        fov = math.radians(50)
+        aspect = self.render_size[0] / self.render_size[1]
+        span = max((max(xs) - min(xs)) / aspect, max(ys) - min(ys))
+        dist = span / 2 / math.tan(fov / 2) * 1.15 + 2.0
+        pitch = math.radians(62)
+        eye = [cx, cy - dist * math.cos(pitch), dist * math.sin(pitch)]
+        q = sapien.Pose(q=[math.cos(math.pi / 4), 0, 0, math.sin(math.pi / 4)]) * sapien.Pose(
+            q=[math.cos(pitch / 2), 0, math.sin(pitch / 2), 0]
+        )
+        return CameraConfig(
+            "third_person",
+            pose=sapien.Pose(p=eye, q=q.q),
+            width=self.render_size[0],
+            height=self.render_size[1],
+            fov=fov,
+            near=0.1,
+            far=100.0,
+        )
+
+    def get_state_dict(self) -> dict:
+        return self.scene.get_sim_state()
+
+    # ------------------------------------------------------------------ episodes
+    def reset(self, seed=None, options=None):
+        """``options``: ``episode`` (index or id) to play a given episode, else one is drawn
+        from the split with the seeded episode RNG (the same seed gives the same episode)."""
+        options = dict(options or {})
+        if seed is not None:
+            first = seed[0] if np.iterable(seed) else seed
+            self._np_random, self._np_random_seed = seeding.np_random(int(first))
+        key = options.get("episode", self.fixed_episode)
+        if key is None:
+            key = int(self.np_random.integers(len(self.episodes)))
+        self._episode = self.episodes.get(key)
+        if self.hs is None or self.hs.house.id != self._episode.house_id:
+            options["reconfigure"] = True
+        obs, info = super().reset(seed=seed, options=options)
+        return obs, self._plain_info(info)
+
+    def _initialize_episode(self, env_idx, options: dict) -> None:
+        ep = self._episode
+        messy = apply_task(self.hs.house, ep.task)
+        self.hs.place_objects(messy)
+        self.fallen = self.hs.settle()
+        self.agents = [
+            AgentState(name, cap, tuple(s["cell"]), int(s["rotation"]))
+            for name, cap, s in zip(self.agent_names, self.team, ep.starts, strict=True)
+        ]
+        self.misplaced = [m.object for m in ep.task.misplaced]
+        self.picked: set[str] = set()
+        self._t = 0
+        self._solved_before = self._reasonable()
+        for i in range(len(self.agents)):
+            self._place_robot(i)
+
+    def _place_robot(self, i: int) -> None:
+        a, kind = self.agents[i], self.kinds[i]
+        x, y = self.hs.house.navgrid.center(*a.cell)
+        pose = robot_pose(x, y, a.rotation)
+        self.robots[i].set_pose(pose)
+        cam = self._sensors[a.name].camera._render_cameras[0]
+        pitch = math.radians(a.horizon)
+        cam.set_local_pose(
+            sapien.Pose(
+                p=[kind.camera_ahead, 0.0, kind.camera_height],
+                q=[math.cos(pitch / 2), 0.0, math.sin(pitch / 2), 0.0],
+            )
+        )
+        self.manipulation.carry(a, pose, kind.hold_offset)
+
+    @property
+    def instances(self) -> dict[int, Instance]:
+        """Segmentation id -> what it shows (kind, type, id), for the current house."""
+        return self.hs.instances
+
+    @property
+    def house(self) -> House:
+        return self.hs.house
+
+    @property
+    def episode(self) -> Episode:
+        return self._episode
+
+    # ------------------------------------------------------------------ stepping
+    def step(self, action):
+        actions = self._check_actions(action)
+        failed: dict[str, str] = {}
+        for i, a in enumerate(self.agents):
+            if a.stopped:
+                continue
+            act, target = actions[a.name]
+            a.steps += 1
+            reason = self._apply(i, act, target)
+            failed[a.name] = reason or ""
+            if reason:
+                a.failures.append(reason)
+        self._t += 1
+        self._elapsed_steps += 1
+        info = self.get_info()
+        info["failed"] = failed
+        obs = self.get_obs(info)
+        reward = self._reward(info)
+        terminated = all(a.stopped for a in self.agents)
+        truncated = self._t >= self.max_steps and not terminated
+        return obs, reward, terminated, truncated, info
+
+    def _check_actions(self, action) -> dict[str, tuple[Action, str | None]]:
+        if not isinstance(action, dict):
+            raise TypeError(
+                f"actions must be a dict agent name -> action, got {type(action).__name__}"
+            )
+        unknown = sorted(set(action) - set(self.agent_names))
+        if unknown:
+            raise KeyError(f"unknown agents {unknown}; this team has {self.agent_names}")
+        missing = [a.name for a in self.agents if not a.stopped and a.name not in action]
+        if missing:
+            raise KeyError(f"no action for {missing}; every agent that has not stopped needs one")
+        return {
+            name: parse_action(value, self.agents[self.agent_names.index(name)].n_actions, name)
+            for name, value in action.items()
+        }
+
+    def _apply(self, i: int, act: Action, target: str | None) -> str | None:
+        a = self.agents[i]
+        if act in (Action.MoveAhead, Action.MoveRight, Action.MoveLeft):
+            cell = move_target(a, act)
+            if not self.hs.house.navgrid.free(*cell):
+                return f"{act.name} blocked by a wall or furniture"
+            other = next((b.name for b in self.agents if b is not a and b.cell == cell), None)
+            if other:
+                return f"{act.name} blocked by {other}"
+            a.cell = cell
+        elif act in (Action.RotateRight, Action.RotateLeft):
+            a.rotation = (a.rotation + (-TURN if act == Action.RotateRight else TURN)) % 360
+        elif act in (Action.LookUp, Action.LookDown):
+            horizon = a.horizon + (-LOOK if act == Action.LookUp else LOOK)
+            if not HORIZON_RANGE[0] <= horizon <= HORIZON_RANGE[1]:
+                return f"{act.name} beyond the camera's range {HORIZON_RANGE} degrees"
+            a.horizon = horizon
+        elif act == Action.Stop:
+            a.stopped = True
+            return None
+        else:
+            return self._manipulate(i, act, target)
+        self._place_robot(i)
+        return None
+
+    def _manipulate(self, i: int, act: Action, target: str | None) -> str | None:
+        a = self.agents[i]
+        xy = np.asarray(self.hs.house.navgrid.center(*a.cell))
+        seg = self._last_seg.get(a.name)
+        counts = (
+            Counter()
+            if seg is None
+            else Counter(dict(zip(*np.unique(seg, return_counts=True), strict=True)))
+        )
+        if act == Action.PickUp:
+            reason = self.manipulation.pick_up(a, xy, counts, target)
+            if reason is None:
+                if a.held in self.misplaced:
+                    self.picked.add(a.held)
+                self._place_robot(i)
+            return reason
+        if act == Action.PutDown:
+            cam = self._sensors[a.name].camera._render_cameras[0]
+            camera = (cam.get_intrinsic_matrix(), cam.get_extrinsic_matrix(), cam.width, cam.height)
+            return self.manipulation.put_down(a, xy, counts, camera, target)
+        return self.manipulation.drop(a)
+
+    # ------------------------------------------------------------------ task state
+    def _reasonable(self) -> list[str]:
+        out = []
+        rooms = {r.id: r.type for r in self.hs.house.rooms}
+        for oid in self.misplaced:
+            st = self.hs.state[oid]
+            if st.receptacle in ("held", "unknown", FLOOR):
+                continue
+            f = self.hs.furniture[st.receptacle]
+            rtype = f.surface(st.surface).receptacle_type
+            if self.knowledge.D(self.manipulation_type(oid), rtype, rooms[f.room]):
+                out.append(oid)
+        return out
+
+    def manipulation_type(self, oid: str) -> str:
+        return self.hs.instances[self.manipulation.seg_of_object[oid]].type
+
+    def evaluate(self) -> dict:
+        reasonable = self._reasonable()
+        return {
+            "success": len(reasonable) == len(self.misplaced),
+            "reasonable": reasonable,
+            "n_reasonable": len(reasonable),
+            "n_misplaced": len(self.misplaced),
+            "picked": sorted(self.picked),
+            "steps": {a.name: a.steps for a in self.agents},
+            "held": {a.name: a.held for a in self.agents},
+            "stopped": {a.name: a.stopped for a in self.agents},
+        }
+
+    def get_info(self) -> dict:
+        return self._plain_info(super().get_info())
+
+    def _plain_info(self, info: dict) -> dict:
+        info = dict(info)
+        info["elapsed_steps"] = self._t
+        info["episode"] = self._episode.id
+        info["task_kind"] = self._episode.task.kind
+        info.setdefault("failed", {})
+        if "reconfigure" in info:
+            info["reconfigure"] = bool(info["reconfigure"])
+        info["fallen"] = list(getattr(self, "fallen", []))
+        return info
+
+    def _reward(self, info: dict) -> float:
+        if self._reward_mode == "none":
+            return 0.0
+        now = info["n_reasonable"]
+        before, self._solved_before = len(self._solved_before), info["reasonable"]
+        if self._reward_mode == "sparse":
+            return float(info["success"] and before < now)
+        return float(now - before)
+
+    def render(self):
+        """The third-person view (``render_mode="rgb_array"``) as an (H, W, 3) uint8 array."""
+        image = super().render()
+        if image is None:
+            return None
+        image = image.cpu().numpy() if hasattr(image, "cpu") else np.asarray(image)
+        return image[0] if image.ndim == 4 else image
+
+    # ------------------------------------------------------------------ observations
+    def get_obs(self, info: dict | None = None, unflattened: bool = False) -> dict:
+        visual = self.obs_mode_struct.visual
+        # Always render: PickUp and PutDown judge visibility on the segmentation.
+        self.scene.update_render(update_sensors=True, update_human_render_cameras=False)
+        obs = {}
+        for i, a in enumerate(self.agents):
+            cam = self._sensors[a.name].camera._render_cameras[0]
+            cam.take_picture()
+            o = {}
+            if visual.rgb:
+                o["rgb"] = np.ascontiguousarray(cam.get_picture("Color")[..., :3])
+            pos = cam.get_picture("PositionSegmentation")
+            seg = pos[..., 3].astype(np.int32)
+            self._last_seg[a.name] = seg
+            if visual.depth:
+                o["depth"] = pos[..., 2].astype(np.float32) * np.float32(-1e-3)
+            if visual.segmentation:
+                o["segmentation"] = seg
+            x, y = self.hs.house.navgrid.center(*a.cell)
+            extrinsic = np.eye(4, dtype=np.float32)
+            extrinsic[:3] = cam.get_extrinsic_matrix()
+            held = self.manipulation.seg_of_object[a.held] if a.held else 0
+            o |= {
+                "pose": np.array([x, y, a.rotation], dtype=np.float32),
+                "intrinsics": cam.get_intrinsic_matrix().astype(np.float32),
+                "extrinsics": extrinsic,
+                "capability": np.array(self.team[i], dtype=np.int8),
+                "held": np.array(held, dtype=np.int32),
+            }
+            obs[a.name] = o
+        return obs
+
+
+# ManiSkill's register_env also registers with gymnasium, adding its own time-limit wrapper
+# that replaces ``truncated`` with a torch tensor; this env truncates itself and returns NumPy.
+register_gym()

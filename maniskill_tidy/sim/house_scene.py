@@ -1,0 +1,362 @@
+"""A house spec built into a ManiSkill/SAPIEN scene, and the object bookkeeping on top of it.
+
+Rooms get floors, walls get doorway gaps and lintels, each room its ceiling lights; furniture is
+static, or an articulation with real revolute doors and prismatic drawers; objects are dynamic
+bodies. Every actor and link is registered as an :class:`Instance` under its SAPIEN
+``per_scene_id``, which is the value instance segmentation writes, so every pixel maps back to a
+type and an instance id.
+
+Compartments are left open: the paper's action set has no Open/Close, so an object inside a
+closed fridge could never be seen or taken out. At every episode start doors stand open at
+90 degrees and drawers are pulled out to 60 % of their travel, and the objects in a drawer move
+out with it. Open doors and drawers are not obstacles on the navigation grid (which is computed
+with them closed).
+
+Objects collide as boxes of their catalogue size even when drawn as spheres or cylinders: a
+round apple placed on a table would otherwise roll. Objects hanging on a towel bar or a paper
+hanger are kinematic, since a bar cannot hold a box against gravity in a rigid-body simulator.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import sapien
+
+from maniskill_tidy.houses.objects import is_hanging
+from maniskill_tidy.houses.schema import Furniture, House, PlacedObject
+from maniskill_tidy.knowledge import FLOOR
+from maniskill_tidy.sim.appearance import (
+    DEFAULT_FLOOR,
+    FLOOR_COLOURS,
+    RGB,
+    WALL_COLOUR,
+    object_look,
+)
+from maniskill_tidy.sim.furniture_shapes import Part, body_parts, link_parts
+
+DOOR_OPEN = math.pi / 2  # radians, clipped to the joint's limit
+DRAWER_OPEN = 0.6  # fraction of the drawer's travel
+SETTLE_STEPS = 40  # physics steps (at 100 Hz) after objects are placed or released
+FELL_DROP = 0.05  # an object whose bottom sank more than this while settling has fallen
+OBJECT_DENSITY = 300.0
+
+_UPRIGHT = sapien.Pose(q=[math.sqrt(0.5), 0.0, math.sqrt(0.5), 0.0])  # SAPIEN cylinders lie on x
+
+
+@dataclass(frozen=True)
+class Instance:
+    """What a segmentation id shows."""
+
+    seg_id: int
+    kind: str  # "object", "furniture", "wall", "floor", "robot"
+    type: str  # object or furniture type, room type for floors, "Wall", robot kind
+    id: str  # object id, furniture id (with "/link" for a door or drawer), wall id, agent name
+
+
+@dataclass
+class ObjectState:
+    """Where an object is, logically: the receptacle D judges, or held by an agent."""
+
+    receptacle: str  # furniture id, "Floor", or "held"
+    surface: str | None
+    room: str | None
+    holder: str | None = None
+
+
+def material(colour: RGB) -> sapien.render.RenderMaterial:
+    return sapien.render.RenderMaterial(base_color=[*colour, 1.0], roughness=0.8, metallic=0.0)
+
+
+def add_part(builder, part: Part, collision: bool = True) -> None:
+    pose = sapien.Pose(p=list(part.center))
+    mat = material(part.colour)
+    if part.kind == "box":
+        builder.add_box_visual(pose=pose, half_size=list(part.half), material=mat)
+        if collision:
+            builder.add_box_collision(pose=pose, half_size=list(part.half))
+    elif part.kind == "cylinder":
+        cyl = pose * _UPRIGHT
+        builder.add_cylinder_visual(
+            pose=cyl, radius=part.half[0], half_length=part.half[2], material=mat
+        )
+        if collision:
+            builder.add_cylinder_collision(pose=cyl, radius=part.half[0], half_length=part.half[2])
+    elif part.kind == "sphere":
+        builder.add_sphere_visual(pose=pose, radius=part.half[0], material=mat)
+        if collision:
+            builder.add_sphere_collision(pose=pose, radius=part.half[0])
+    else:
+        raise ValueError(f"unknown part kind {part.kind!r}; expected box, cylinder or sphere")
+
+
+def yaw_quat(yaw: float) -> list[float]:
+    return [math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)]
+
+
+def rectilinear_strips(polygon: list[list[float]]) -> list[tuple[float, float, float, float]]:
+    """Cover a rectilinear polygon with axis-aligned rectangles (x0, y0, x1, y1)."""
+    xs = sorted({p[0] for p in polygon})
+    ys = sorted({p[1] for p in polygon})
+    out = []
+    poly = np.asarray(polygon)
+    for x0, x1 in zip(xs, xs[1:], strict=False):
+        for y0, y1 in zip(ys, ys[1:], strict=False):
+            if _inside(poly, (x0 + x1) / 2, (y0 + y1) / 2):
+                out.append((x0, y0, x1, y1))
+    return out
+
+
+def _inside(poly: np.ndarray, x: float, y: float) -> bool:
+    inside = False
+    n = len(poly)
+    for i in range(n):
+        (xa, ya), (xb, yb) = poly[i], poly[(i + 1) % n]
+        if (ya > y) != (yb > y) and x < xa + (y - ya) * (xb - xa) / (yb - ya):
+            inside = not inside
+    return inside
+
+
+class HouseScene:
+    """Builds ``house`` into ``scene`` (a ManiSkillScene) once; episodes then only move objects."""
+
+    def __init__(self, scene, house: House, shadows: bool = False) -> None:
+        self.scene, self.house, self.shadows = scene, house, shadows
+        self.instances: dict[int, Instance] = {}
+        self.objects: dict[str, sapien.Entity] = {}
+        self.bodies: dict[str, sapien.physx.PhysxRigidDynamicComponent] = {}
+        self.articulations: dict[str, sapien.physx.PhysxArticulation] = {}
+        self.state: dict[str, ObjectState] = {}
+        self.furniture = house.furniture_by_id()
+        self.room_type = {r.id: r.type for r in house.rooms}
+        self._build()
+
+    # ------------------------------------------------------------------ building
+    def _register(self, entity: sapien.Entity, kind: str, type_: str, id_: str) -> None:
+        sid = entity.per_scene_id
+        self.instances[sid] = Instance(sid, kind, type_, id_)
+
+    def _raw(self, actor) -> sapien.Entity:
+        return actor._objs[0]
+
+    def _build(self) -> None:
+        self._build_floors()
+        self._build_walls()
+        self._build_lights()
+        for f in self.house.furniture:
+            self._build_furniture(f)
+        for o in self.house.objects:
+            self._build_object(o)
+
+    def _build_floors(self) -> None:
+        for room in self.house.rooms:
+            b = self.scene.create_actor_builder()
+            colour = FLOOR_COLOURS.get(room.type, DEFAULT_FLOOR)
+            for x0, y0, x1, y1 in rectilinear_strips(room.polygon):
+                part = Part(
+                    "box",
+                    ((x0 + x1) / 2, (y0 + y1) / 2, -0.05),
+                    ((x1 - x0) / 2, (y1 - y0) / 2, 0.05),
+                    colour,
+                )
+                add_part(b, part)
+            b.initial_pose = sapien.Pose()
+            self._register(
+                self._raw(b.build_static(f"floor_{room.id}")), "floor", room.type, room.id
+            )
+
+    def _build_walls(self) -> None:
+        doors_on: dict[str, list] = {}
+        for d in self.house.doors:
+            doors_on.setdefault(d.wall, []).append(d)
+        for wall in self.house.walls:
+            (xa, ya), (xb, yb) = wall.start, wall.end
+            length = math.hypot(xb - xa, yb - ya)
+            if length < 1e-6:
+                continue
+            ux, uy = (xb - xa) / length, (yb - ya) / length
+            spans = [(0.0, length, 0.0, wall.height)]
+            for d in sorted(
+                doors_on.get(wall.id, []),
+                key=lambda d: (d.center[0] - xa) * ux + (d.center[1] - ya) * uy,
+            ):
+                t = (d.center[0] - xa) * ux + (d.center[1] - ya) * uy
+                lo, hi = t - d.width / 2, t + d.width / 2
+                new = []
+                for s0, s1, z0, z1 in spans:
+                    if z0 > 0 or hi <= s0 or lo >= s1:
+                        new.append((s0, s1, z0, z1))
+                        continue
+                    if lo > s0:
+                        new.append((s0, lo, z0, z1))
+                    if hi < s1:
+                        new.append((hi, s1, z0, z1))
+                    new.append((max(lo, s0), min(hi, s1), min(d.height, z1), z1))
+                spans = new
+            b = self.scene.create_actor_builder()
+            yaw = math.atan2(uy, ux)
+            for s0, s1, z0, z1 in spans:
+                if s1 - s0 < 1e-4 or z1 - z0 < 1e-4:
+                    continue
+                mid = (s0 + s1) / 2
+                pose = sapien.Pose(p=[xa + ux * mid, ya + uy * mid, (z0 + z1) / 2], q=yaw_quat(yaw))
+                half = [(s1 - s0) / 2, wall.thickness / 2, (z1 - z0) / 2]
+                b.add_box_visual(pose=pose, half_size=half, material=material(WALL_COLOUR))
+                b.add_box_collision(pose=pose, half_size=half)
+            b.initial_pose = sapien.Pose()
+            self._register(self._raw(b.build_static(wall.id)), "wall", "Wall", wall.id)
+
+    def _build_lights(self) -> None:
+        self.scene.set_ambient_light([0.35, 0.35, 0.35])
+        self.scene.add_directional_light(
+            [0.3, 0.2, -1.0],
+            [0.6, 0.6, 0.6],
+            shadow=self.shadows,
+            shadow_scale=12,
+            shadow_map_size=2048,
+        )
+        for light in self.house.lights:
+            colour = [1.6 * light.intensity + 0.4] * 3
+            self.scene.add_point_light(light.position, colour, shadow=self.shadows)
+
+    def _furniture_pose(self, f: Furniture) -> sapien.Pose:
+        return sapien.Pose(p=list(f.position), q=yaw_quat(f.yaw))
+
+    def _build_furniture(self, f: Furniture) -> None:
+        if not f.joints:
+            b = self.scene.create_actor_builder()
+            for part in body_parts(f):
+                add_part(b, part)
+            b.initial_pose = self._furniture_pose(f)
+            self._register(self._raw(b.build_static(f.id)), "furniture", f.type, f.id)
+            return
+        ab = self.scene.create_articulation_builder()
+        ab.initial_pose = self._furniture_pose(f)
+        root = ab.create_link_builder()
+        root.set_name("body")
+        for part in body_parts(f):
+            add_part(root, part)
+        for j in f.joints:
+            link = ab.create_link_builder(root)
+            link.set_name(j.name)
+            link.set_joint_name(j.name)
+            axis_q = (
+                [math.sqrt(0.5), 0.0, -math.sqrt(0.5), 0.0]
+                if j.type == "revolute"
+                else [math.sqrt(0.5), 0.0, 0.0, math.sqrt(0.5)]
+            )
+            link.set_joint_properties(
+                j.type,
+                [list(j.limits)],
+                pose_in_parent=sapien.Pose(p=list(j.origin), q=axis_q),
+                pose_in_child=sapien.Pose(q=axis_q),
+                friction=0.0,
+                damping=10.0,
+            )
+            for part in link_parts(f, j):
+                moved = Part(
+                    part.kind,
+                    tuple(c - o for c, o in zip(part.center, j.origin, strict=True)),
+                    part.half,
+                    part.colour,
+                )
+                add_part(link, moved)
+        art = ab.build(name=f.id, fix_root_link=True)
+        raw = art._objs[0]
+        self.articulations[f.id] = raw
+        prefix = f"scene-0-{f.id}_"  # ManiSkill names links scene-<i>-<articulation>_<link>
+        for link in raw.links:
+            short = link.entity.name.removeprefix(prefix)
+            id_ = f.id if short == "body" else f"{f.id}/{short}"
+            self._register(link.entity, "furniture", f.type, id_)
+
+    def _build_object(self, o: PlacedObject) -> None:
+        shape, colour = object_look(o.type)
+        w, d, h = o.size
+        b = self.scene.create_actor_builder()
+        mat = material(colour)
+        centre = sapien.Pose(p=[0.0, 0.0, h / 2])
+        if shape == "sphere":
+            b.add_sphere_visual(pose=centre, radius=min(w, d, h) / 2, material=mat)
+        elif shape == "cylinder":
+            b.add_cylinder_visual(
+                pose=centre * _UPRIGHT, radius=min(w, d) / 2, half_length=h / 2, material=mat
+            )
+        else:
+            b.add_box_visual(pose=centre, half_size=[w / 2, d / 2, h / 2], material=mat)
+        b.add_box_collision(pose=centre, half_size=[w / 2, d / 2, h / 2], density=OBJECT_DENSITY)
+        b.initial_pose = sapien.Pose(p=list(o.position), q=yaw_quat(o.yaw))
+        actor = b.build(o.id)
+        entity = self._raw(actor)
+        self.objects[o.id] = entity
+        self.bodies[o.id] = entity.find_component_by_type(sapien.physx.PhysxRigidDynamicComponent)
+        self._register(entity, "object", o.type, o.id)
+
+    # ------------------------------------------------------------------ episodes
+    def open_compartments(self) -> None:
+        for fid, art in self.articulations.items():
+            f = self.furniture[fid]
+            art.set_qpos(np.array([self._open_q(j) for j in f.joints], dtype=np.float32))
+            art.set_qvel(np.zeros(len(f.joints), dtype=np.float32))
+
+    @staticmethod
+    def _open_q(j) -> float:
+        if j.type == "revolute":
+            return min(DOOR_OPEN, j.limits[1])
+        return DRAWER_OPEN * j.limits[1]
+
+    def surface_offset(self, f: Furniture, link: str) -> np.ndarray:
+        """World displacement of what a drawer carries, with the drawer open."""
+        if link == "body":
+            return np.zeros(3)
+        j = next(j for j in f.joints if j.name == link)
+        if j.type != "prismatic":
+            return np.zeros(3)
+        q = self._open_q(j)
+        ax, ay = j.axis[0], j.axis[1]
+        c, s = math.cos(f.yaw), math.sin(f.yaw)
+        return np.array([q * (c * ax - s * ay), q * (s * ax + c * ay), 0.0])
+
+    def place_objects(self, house: House) -> None:
+        """Put every object where ``house`` (the task's messy house) says, open, and at rest."""
+        self.open_compartments()
+        for o in house.objects:
+            offset = np.zeros(3)
+            if o.receptacle != FLOOR:
+                f = self.furniture[o.receptacle]
+                offset = self.surface_offset(f, f.surface(o.surface).link)
+            self.set_object_pose(o.id, np.asarray(o.position) + offset, o.yaw)
+            hanging = o.receptacle != FLOOR and is_hanging(
+                self.furniture[o.receptacle].surface(o.surface)
+            )
+            self.bodies[o.id].kinematic = hanging
+            self.state[o.id] = ObjectState(o.receptacle, o.surface, o.room)
+
+    def set_object_pose(self, oid: str, bottom: np.ndarray, yaw: float) -> None:
+        body = self.bodies[oid]
+        self.objects[oid].set_pose(sapien.Pose(p=[float(v) for v in bottom], q=yaw_quat(yaw)))
+        if not body.kinematic:
+            body.set_linear_velocity([0.0, 0.0, 0.0])
+            body.set_angular_velocity([0.0, 0.0, 0.0])
+
+    def object_bottom(self, oid: str) -> np.ndarray:
+        return np.asarray(self.objects[oid].get_pose().p, dtype=np.float64)
+
+    def settle(self, steps: int = SETTLE_STEPS, watch: list[str] | None = None) -> list[str]:
+        """Step physics; return the watched objects (default: all free ones) that fell."""
+        watch = [
+            o
+            for o in (watch if watch is not None else self.objects)
+            if not self.bodies[o].kinematic
+        ]
+        before = {o: self.object_bottom(o) for o in watch}
+        px = self.scene.px
+        for _ in range(steps):
+            px.step()
+        return [o for o in watch if before[o][2] - self.object_bottom(o)[2] > FELL_DROP]
+
+    def yaw_of(self, oid: str) -> float:
+        q = self.objects[oid].get_pose().q
+        return 2.0 * math.atan2(q[3], q[0])
