@@ -73,36 +73,28 @@ def body_parts(f: Furniture) -> list[Part]:
     dark, light = shade(c, 0.7), shade(c, 1.15)
     t = f.type
     if t in ("CounterTop", "Sink"):
-        parts = shell(w, d, 0.0, h - SLAB, c) + [
-            box(-w / 2, w / 2, -d / 2, -d / 2 + 0.02, 0, 0.1, dark)
-        ]
         cabinet = f.surface("cabinet")
-        parts.append(
-            box(-w / 2, w / 2, -d / 2, d / 2, cabinet.center[2] - PANEL, cabinet.center[2], c)
-        )
+        kick = box(-w / 2, w / 2, -d / 2, -d / 2 + 0.02, 0, 0.1, dark)
+        shelf = box(-w / 2, w / 2, -d / 2, d / 2, cabinet.center[2] - PANEL, cabinet.center[2], c)
         if t == "CounterTop":
-            return parts + [slab(w + 0.02, d + 0.02, h, light)]
+            return [*shell(w, d, 0.0, h - SLAB, c), kick, shelf, slab(w + 0.02, d + 0.02, h, light)]
+        # the basin is a recess: the carcass stops under its floor, the rims reach the top
         basin = f.surface("basin")
         bx, bz = basin.center[0], basin.center[2]
-        bw = basin.size[0]
+        bw, bd = basin.size
         steel = (0.75, 0.77, 0.8)
-        parts += [
-            box(-w / 2, bx - bw / 2, -d / 2, d / 2, h - SLAB, h, light),
-            box(bx + bw / 2, w / 2, -d / 2, d / 2, h - SLAB, h, light),
-            box(bx - bw / 2, bx + bw / 2, -d / 2, -basin.size[1] / 2, h - SLAB, h, light),
-            box(bx - bw / 2, bx + bw / 2, basin.size[1] / 2, d / 2, h - SLAB, h, light),
-            box(
-                bx - bw / 2,
-                bx + bw / 2,
-                -basin.size[1] / 2,
-                basin.size[1] / 2,
-                bz - PANEL,
-                bz,
-                steel,
-            ),
-            Part("cylinder", (bx, -d / 2 + 0.06, h + 0.12), (0.015, 0.015, 0.12), steel),
+        z0 = bz - PANEL
+        return [
+            *shell(w, d, 0.0, z0, c),
+            kick,
+            shelf,
+            box(-w / 2, bx - bw / 2, -d / 2, d / 2, z0, h, light),
+            box(bx + bw / 2, w / 2, -d / 2, d / 2, z0, h, light),
+            box(bx - bw / 2, bx + bw / 2, -d / 2, -bd / 2, z0, h, light),
+            box(bx - bw / 2, bx + bw / 2, bd / 2, d / 2, z0, h, light),
+            box(bx - bw / 2, bx + bw / 2, -bd / 2, bd / 2, z0, bz, steel),
+            Part("cylinder", (bx, -d / 2 + 0.05, h + 0.12), (0.015, 0.015, 0.12), steel),
         ]
-        return parts
     if t in ("Fridge", "Safe", "Microwave"):
         parts = shell(w, d, 0.0, h, c)
         for s in f.surfaces:

@@ -10,7 +10,8 @@ Compartments are left open: the paper's action set has no Open/Close, so an obje
 closed fridge could never be seen or taken out. At every episode start doors stand open at
 90 degrees and drawers are pulled out to 60 % of their travel, and the objects in a drawer move
 out with it. Open doors and drawers are not obstacles on the navigation grid (which is computed
-with them closed).
+with them closed); stiff joint drives hold them open, and doors have no collision shapes (a
+door opened towards a corner wall would otherwise be pushed back by it).
 
 Objects collide as boxes of their catalogue size even when drawn as spheres or cylinders: a
 round apple placed on a table would otherwise roll. Objects hanging on a towel bar or a paper
@@ -40,7 +41,7 @@ from maniskill_tidy.sim.furniture_shapes import Part, body_parts, link_parts
 DOOR_OPEN = math.pi / 2  # radians, clipped to the joint's limit
 DRAWER_OPEN = 0.6  # fraction of the drawer's travel
 SETTLE_STEPS = 40  # physics steps (at 100 Hz) after objects are placed or released
-FELL_DROP = 0.05  # an object whose bottom sank more than this while settling has fallen
+MOVED = 0.03  # metres: an object that moved more than this while settling was not at rest
 OBJECT_DENSITY = 300.0
 
 _UPRIGHT = sapien.Pose(q=[math.sqrt(0.5), 0.0, math.sqrt(0.5), 0.0])  # SAPIEN cylinders lie on x
@@ -262,9 +263,12 @@ class HouseScene:
                     part.half,
                     part.colour,
                 )
-                add_part(link, moved)
+                # doors are drawn but do not collide: open at 90 degrees a door may touch a wall
+                add_part(link, moved, collision=j.type != "revolute")
         art = ab.build(name=f.id, fix_root_link=True)
         raw = art._objs[0]
+        for joint in raw.get_active_joints():  # stiff drives hold doors and drawers in place
+            joint.set_drive_property(stiffness=1e5, damping=1e3)
         self.articulations[f.id] = raw
         prefix = f"scene-0-{f.id}_"  # ManiSkill names links scene-<i>-<articulation>_<link>
         for link in raw.links:
@@ -298,8 +302,11 @@ class HouseScene:
     def open_compartments(self) -> None:
         for fid, art in self.articulations.items():
             f = self.furniture[fid]
-            art.set_qpos(np.array([self._open_q(j) for j in f.joints], dtype=np.float32))
+            q = [self._open_q(j) for j in f.joints]
+            art.set_qpos(np.array(q, dtype=np.float32))
             art.set_qvel(np.zeros(len(f.joints), dtype=np.float32))
+            for joint, target in zip(art.get_active_joints(), q, strict=True):
+                joint.set_drive_target(target)
 
     @staticmethod
     def _open_q(j) -> float:
@@ -345,7 +352,8 @@ class HouseScene:
         return np.asarray(self.objects[oid].get_pose().p, dtype=np.float64)
 
     def settle(self, steps: int = SETTLE_STEPS, watch: list[str] | None = None) -> list[str]:
-        """Step physics; return the watched objects (default: all free ones) that fell."""
+        """Step physics; return the watched objects (default: all free ones) that moved more than
+        ``MOVED`` (fell, slid or were pushed out of a wrong overlap)."""
         watch = [
             o
             for o in (watch if watch is not None else self.objects)
@@ -355,7 +363,7 @@ class HouseScene:
         px = self.scene.px
         for _ in range(steps):
             px.step()
-        return [o for o in watch if before[o][2] - self.object_bottom(o)[2] > FELL_DROP]
+        return [o for o in watch if np.linalg.norm(self.object_bottom(o) - before[o]) > MOVED]
 
     def yaw_of(self, oid: str) -> float:
         q = self.objects[oid].get_pose().q
