@@ -18,7 +18,8 @@ demo: setup
 	$(PY) -m maniskill_tidy.cli validate $(DEMO_DIR)/dataset
 	$(PY) -m maniskill_tidy.cli dataset-stats $(DEMO_DIR)/dataset --png $(DEMO_DIR)/dataset-stats.png
 	$(PY) -m maniskill_tidy.cli show-house --dataset $(DEMO_DIR)/dataset --split train --index 0 --task 0 --out $(DEMO_DIR)/house.png
-	@echo "demo pictures: $(DEMO_DIR)/house.png $(DEMO_DIR)/dataset-stats.png"
+	$(PY) -m maniskill_tidy.cli run-episode --dataset $(DEMO_DIR)/dataset --split test --setting I --episode 0 --steps 30 --out $(DEMO_DIR)/episode
+	@echo "demo pictures: $(DEMO_DIR)/house.png $(DEMO_DIR)/dataset-stats.png $(DEMO_DIR)/episode/*.png"
 
 bench: setup
 	$(PY) -m maniskill_tidy.bench

@@ -121,6 +121,21 @@ def _derive(args: argparse.Namespace) -> int:
     return 0
 
 
+def _run_episode(args: argparse.Namespace) -> int:
+    from maniskill_tidy.envs.snapshots import run_episode
+
+    episode = int(args.episode) if args.episode.isdigit() else args.episode
+    r = run_episode(
+        Path(args.out), args.setting, args.dataset, args.split, episode, args.steps, args.seed
+    )
+    print(
+        f"{r['episode']}: steps per agent {r['steps']}, {r['failed_actions']} failed actions, "
+        f"terminated={r['terminated']}"
+    )
+    print("pictures: " + " ".join(r["files"]))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="maniskill-tidy", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -153,6 +168,18 @@ def build_parser() -> argparse.ArgumentParser:
     h.add_argument("--procthor", help="draw a house of a ProcTHOR .jsonl(.gz) file")
     h.add_argument("--out", default="house.png")
     h.set_defaults(func=_show_house)
+
+    e = sub.add_parser(
+        "run-episode", help="play one episode with an exploring policy; save camera and house PNGs"
+    )
+    e.add_argument("--setting", default="I")
+    e.add_argument("--dataset", help="dataset directory (default: the env's shipped dataset)")
+    e.add_argument("--split", default="test")
+    e.add_argument("--episode", default="0", help="index or id in the split")
+    e.add_argument("--steps", type=int, default=30)
+    e.add_argument("--seed", type=int, default=0)
+    e.add_argument("--out", default="out/episode")
+    e.set_defaults(func=_run_episode)
 
     k = sub.add_parser("knowledge", help="type counts; reasonable places of an object type")
     k.add_argument("object", nargs="?")

@@ -370,3 +370,24 @@ def test_shipped_default_dataset_regenerates_bit_for_bit(tmp_path):
         tmp_path / "d", shipped["houses"], seed=shipped["seed"], workers=1, progress=False
     )
     assert fresh["dataset_hash"] == shipped["dataset_hash"]
+
+
+def test_preset_files_match_the_builtin_settings_and_custom_teams_run():
+    from pathlib import Path
+
+    from maniskill_tidy.tasks.teams import SETTINGS, load_preset
+
+    root = Path(__file__).resolve().parents[1] / "envs"
+    for name in ("I", "II"):
+        setting, members = load_preset(root / f"setting_{name}.json")
+        assert setting == name and members == SETTINGS[name]
+    e = HeteroTidyEnv(setting=str(root / "two_manipulators.json"), split="test", obs_mode="none")
+    try:
+        assert [e.action_space[n].n for n in e.agent_names] == [11, 11]
+        obs, _ = e.reset(seed=0)
+        heights = [np.linalg.inv(obs[n]["extrinsics"])[2, 3] for n in e.agent_names]
+        assert heights == pytest.approx([1.0, 0.25], abs=1e-3)
+    finally:
+        e.close()
+    with pytest.raises(ValueError, match="not a team preset"):
+        load_preset(root / "README.md")

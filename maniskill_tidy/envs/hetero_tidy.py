@@ -52,6 +52,7 @@ from maniskill_tidy.houses.schema import House
 from maniskill_tidy.knowledge import FLOOR, load_placement
 from maniskill_tidy.sim.house_scene import HouseScene, Instance
 from maniskill_tidy.tasks.metatask import apply_task
+from maniskill_tidy.tasks.teams import load_preset
 from maniskill_tidy.tasks.teams import team as parse_team
 
 QUALITIES = ("fast", "high")
@@ -98,6 +99,8 @@ class HeteroTidyEnv(BaseEnv):
         if kwargs.get("num_envs", 1) != 1:
             raise ValueError("HeteroTidy-v1 simulates one house per env: num_envs must be 1")
         self.team = parse_team(setting)
+        if isinstance(setting, str) and setting.endswith(".json"):
+            setting = load_preset(setting)[0]
         self.setting = setting if isinstance(setting, str) else None
         self.agent_names = [f"agent_{i}" for i in range(len(self.team))]
         self.kinds = [robot_kind(c) for c in self.team]

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 Capability = tuple[int, int, int]
 
 LOW_SCOUT: Capability = (1, 0, 0)  # navigation only, camera at about 0.22 m
@@ -14,8 +17,24 @@ SETTINGS: dict[str, tuple[Capability, ...]] = {
 }
 
 
+def load_preset(path: str | Path) -> tuple[str | None, tuple[Capability, ...]]:
+    """A team preset file (the top-level ``envs/*.json``): its setting name and its team."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text())
+        members = data["team"]
+    except (OSError, json.JSONDecodeError, KeyError, TypeError) as e:
+        raise ValueError(
+            f'{path}: not a team preset ({e}); expected JSON with a "team" list of '
+            '(Nav, Mani, Hei) triples and optionally a "setting" name'
+        ) from None
+    return data.get("setting"), team(members)
+
+
 def team(setting: str | list | tuple) -> tuple[Capability, ...]:
-    """A preset name ("I", "II") or a list of capability triples, checked."""
+    """A preset name ("I", "II"), a preset file, or a list of capability triples, checked."""
+    if isinstance(setting, str) and setting.endswith(".json"):
+        return load_preset(setting)[1]
     if isinstance(setting, str):
         try:
             return SETTINGS[setting]
