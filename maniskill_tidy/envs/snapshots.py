@@ -92,7 +92,7 @@ def run_episode(
             views_figure(env, obs, f"{head}: step 0", out / "agents-step000.png"),
             third_person_figure(env, f"{head}: start", out / "house-start.png"),
         ]
-        for t in range(steps):
+        for _ in range(steps):
             action = {n: explore_action(env, i, rng) for i, n in enumerate(env.agent_names)}
             obs, _, _, _, info = env.step(action)
         files.append(
