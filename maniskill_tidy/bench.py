@@ -53,7 +53,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.only != "generation":
         from maniskill_tidy.envs.benchmark import bench_env, report
 
-        print(report([bench_env("I"), bench_env("II")]))
+        print(report([bench_env("I"), bench_env("II"), bench_env("I", quality="high")]))
         print()
     if args.only == "env":
         return 0

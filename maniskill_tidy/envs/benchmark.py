@@ -43,8 +43,10 @@ def env_steps(env: HeteroTidyEnv, steps: int, rng: np.random.Generator) -> float
     return steps / (time.perf_counter() - start)
 
 
-def bench_env(setting: str, blocks: int = 5, steps: int = 40, size: int = 224) -> dict:
-    env = HeteroTidyEnv(setting=setting, split="test", camera_size=(size, size))
+def bench_env(
+    setting: str, blocks: int = 5, steps: int = 40, size: int = 224, quality: str = "fast"
+) -> dict:
+    env = HeteroTidyEnv(setting=setting, split="test", camera_size=(size, size), quality=quality)
     rng = np.random.default_rng(0)
     try:
         env.reset(options={"episode": 0})
@@ -60,6 +62,7 @@ def bench_env(setting: str, blocks: int = 5, steps: int = 40, size: int = 224) -
         env.close()
     return {
         "setting": setting,
+        "quality": quality,
         "agents": len(env.agent_names),
         "size": size,
         "env_steps_per_s": statistics.median(env_rates),
@@ -92,13 +95,13 @@ def _reset_times(env: HeteroTidyEnv, repeats: int = 5) -> tuple[float, float]:
 def report(results: list[dict]) -> str:
     lines = [
         "env step (all agents act, RGB + depth + segmentation per agent) vs raw SAPIEN render loop",
-        f"{'setting':>7} {'agents':>6} {'size':>5} {'steps/s':>8} {'raw fps':>8} {'ratio':>6} "
-        f"{'reset s':>8} {'new house s':>11}",
+        f"{'setting':>7} {'quality':>7} {'agents':>6} {'size':>5} {'steps/s':>8} "
+        f"{'raw fps':>8} {'ratio':>6} {'reset s':>8} {'new house s':>11}",
     ]
     for r in results:
         lines.append(
-            f"{r['setting']:>7} {r['agents']:>6} {r['size']:>5} {r['env_steps_per_s']:>8.1f} "
-            f"{r['raw_frames_per_s']:>8.1f} {r['ratio']:>6.2f} {r['reset_same_house_s']:>8.3f} "
-            f"{r['reset_new_house_s']:>11.3f}"
+            f"{r['setting']:>7} {r['quality']:>7} {r['agents']:>6} {r['size']:>5} "
+            f"{r['env_steps_per_s']:>8.1f} {r['raw_frames_per_s']:>8.1f} {r['ratio']:>6.2f} "
+            f"{r['reset_same_house_s']:>8.3f} {r['reset_new_house_s']:>11.3f}"
         )
     return "\n".join(lines)

@@ -98,9 +98,10 @@ class HeteroTidyEnv(BaseEnv):
             raise ValueError(f"quality {quality!r} is not one of {QUALITIES}")
         if kwargs.get("num_envs", 1) != 1:
             raise ValueError("HeteroTidy-v1 simulates one house per env: num_envs must be 1")
-        self.team = parse_team(setting)
         if isinstance(setting, str) and setting.endswith(".json"):
-            setting = load_preset(setting)[0]
+            setting, self.team = load_preset(setting)
+        else:
+            self.team = parse_team(setting)
         self.setting = setting if isinstance(setting, str) else None
         self.agent_names = [f"agent_{i}" for i in range(len(self.team))]
         self.kinds = [robot_kind(c) for c in self.team]
@@ -369,19 +370,15 @@ class HeteroTidyEnv(BaseEnv):
     # ------------------------------------------------------------------ task state
     def _reasonable(self) -> list[str]:
         out = []
-        rooms = {r.id: r.type for r in self.hs.house.rooms}
         for oid in self.misplaced:
             st = self.hs.state[oid]
             if st.receptacle in ("held", "unknown", FLOOR):
                 continue
             f = self.hs.furniture[st.receptacle]
             rtype = f.surface(st.surface).receptacle_type
-            if self.knowledge.D(self.manipulation_type(oid), rtype, rooms[f.room]):
+            if self.knowledge.D(self.manipulation.types[oid], rtype, self.hs.room_type[f.room]):
                 out.append(oid)
         return out
-
-    def manipulation_type(self, oid: str) -> str:
-        return self.hs.instances[self.manipulation.seg_of_object[oid]].type
 
     def evaluate(self) -> dict:
         reasonable = self._reasonable()

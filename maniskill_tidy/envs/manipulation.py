@@ -13,7 +13,7 @@ from maniskill_tidy.houses.furnish import GAP, overlaps
 from maniskill_tidy.houses.objects import is_hanging
 from maniskill_tidy.houses.schema import Furniture, Surface, rotated_bounds
 from maniskill_tidy.knowledge import FLOOR
-from maniskill_tidy.sim.house_scene import HouseScene, ObjectState, _inside, yaw_quat
+from maniskill_tidy.sim.house_scene import HouseScene, ObjectState, yaw_quat
 
 SPOT_STEP = 0.04  # metres between candidate spots on a surface
 ON_SURFACE = 0.06  # an object whose bottom is this close to a surface rests on it
@@ -23,6 +23,7 @@ class Manipulation:
     def __init__(self, hs: HouseScene) -> None:
         self.hs = hs
         self.sizes = {o.id: o.size for o in hs.house.objects}
+        self.types = {o.id: o.type for o in hs.house.objects}
         self.seg_of_object = {i.id: sid for sid, i in hs.instances.items() if i.kind == "object"}
         self.furniture_of_seg: dict[int, str] = {}
         self.link_of_seg: dict[int, str] = {}
@@ -204,11 +205,7 @@ class Manipulation:
         """Where an object came to rest: the surface under it, the floor, or nowhere known."""
         p = self.hs.object_bottom(oid)
         if p[2] < ON_SURFACE / 2:
-            room = next(
-                (r.id for r in self.hs.house.rooms if _inside(np.asarray(r.polygon), p[0], p[1])),
-                None,
-            )
-            return ObjectState(FLOOR, None, room)
+            return ObjectState(FLOOR, None, self.hs.house.room_at(p[0], p[1]))
         for f in self.hs.house.furniture:
             for s in f.surfaces:
                 c = self.surface_centre(f, s)

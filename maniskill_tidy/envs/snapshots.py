@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from maniskill_tidy.envs.actions import Action
+from maniskill_tidy.envs.actions import Action, move_target
 from maniskill_tidy.envs.hetero_tidy import HeteroTidyEnv
 from maniskill_tidy.plotting import plt, save_figure
 
@@ -63,8 +63,6 @@ def third_person_figure(env: HeteroTidyEnv, title: str, out: Path) -> Path:
 
 def explore_action(env: HeteroTidyEnv, i: int, rng: np.random.Generator) -> int:
     """Move ahead when the grid allows it, otherwise turn; now and then turn anyway."""
-    from maniskill_tidy.envs.actions import move_target
-
     a = env.agents[i]
     ahead = move_target(a, Action.MoveAhead)
     if env.house.navgrid.free(*ahead) and rng.random() > 0.15:

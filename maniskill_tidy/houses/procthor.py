@@ -157,12 +157,7 @@ def import_house(d: dict, house_id: str) -> House:
 
 
 def _room_of(house: House, x: float, y: float) -> str:
-    from matplotlib.path import Path as PolygonPath
-
-    for r in house.rooms:
-        if PolygonPath(r.polygon).contains_point((x, y)):
-            return r.id
-    return house.rooms[0].id
+    return house.room_at(x, y) or house.rooms[0].id
 
 
 def _import_object(house: House, o: dict, where: str, parent: Furniture | None) -> None:

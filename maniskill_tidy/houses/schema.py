@@ -191,6 +191,15 @@ class House:
                 return r
         raise KeyError(f"house {self.id} has no room {room_id!r}")
 
+    def room_at(self, x: float, y: float) -> str | None:
+        """The id of the room whose polygon contains (x, y), or None outside every room."""
+        from matplotlib.path import Path as PolygonPath
+
+        for r in self.rooms:
+            if PolygonPath(r.polygon).contains_point((x, y)):
+                return r.id
+        return None
+
     def furniture_by_id(self) -> dict[str, Furniture]:
         return {f.id: f for f in self.furniture}
 

@@ -47,18 +47,11 @@ def shell(w: float, d: float, z0: float, z1: float, colour: RGB, x0=None, x1=Non
 
 
 def legs(w: float, d: float, z1: float, colour: RGB, t: float = 0.05) -> list[Part]:
+    """Four square posts of side ``t`` in the corners of the footprint."""
     return [
-        box(
-            sx * (w / 2 - t) - t / 2 * 0,
-            sx * (w / 2 - t) + t * sx,
-            sy * (d / 2 - t),
-            sy * (d / 2 - t) + t * sy,
-            0.0,
-            z1,
-            colour,
-        )
-        for sx in (-1, 1)
-        for sy in (-1, 1)
+        box(x, x + t, y, y + t, 0.0, z1, colour)
+        for x in (-w / 2, w / 2 - t)
+        for y in (-d / 2, d / 2 - t)
     ]
 
 

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import sapien
+from matplotlib.path import Path as PolygonPath
 
 from maniskill_tidy.houses.objects import is_hanging
 from maniskill_tidy.houses.schema import Furniture, House, PlacedObject
@@ -101,23 +102,13 @@ def rectilinear_strips(polygon: list[list[float]]) -> list[tuple[float, float, f
     """Cover a rectilinear polygon with axis-aligned rectangles (x0, y0, x1, y1)."""
     xs = sorted({p[0] for p in polygon})
     ys = sorted({p[1] for p in polygon})
-    out = []
-    poly = np.asarray(polygon)
-    for x0, x1 in zip(xs, xs[1:], strict=False):
-        for y0, y1 in zip(ys, ys[1:], strict=False):
-            if _inside(poly, (x0 + x1) / 2, (y0 + y1) / 2):
-                out.append((x0, y0, x1, y1))
-    return out
-
-
-def _inside(poly: np.ndarray, x: float, y: float) -> bool:
-    inside = False
-    n = len(poly)
-    for i in range(n):
-        (xa, ya), (xb, yb) = poly[i], poly[(i + 1) % n]
-        if (ya > y) != (yb > y) and x < xa + (y - ya) * (xb - xa) / (yb - ya):
-            inside = not inside
-    return inside
+    outline = PolygonPath(polygon)
+    return [
+        (x0, y0, x1, y1)
+        for x0, x1 in zip(xs, xs[1:], strict=False)
+        for y0, y1 in zip(ys, ys[1:], strict=False)
+        if outline.contains_point(((x0 + x1) / 2, (y0 + y1) / 2))
+    ]
 
 
 class HouseScene:
