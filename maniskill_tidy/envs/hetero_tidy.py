@@ -17,7 +17,10 @@ observations are NumPy arrays without a batch dimension. Per agent they hold:
   object, 0 if none).
 
 ``obs_mode`` picks the images as in ManiSkill ("rgb+depth+segmentation", "rgb", "depth", any
-``+`` combination, or "none").
+``+`` combination, or "none"). With "none" no camera renders on a normal step, which is what
+policies that ignore images (the privileged expert, Random) want: PickUp and PutDown still judge
+visibility on a segmentation, rendered on demand for the acting agent at the start of the step,
+i.e. of the same scene state an observation at the end of the previous step would have shown.
 """
 
 from __future__ import annotations
@@ -284,6 +287,10 @@ class HeteroTidyEnv(BaseEnv):
     # ------------------------------------------------------------------ stepping
     def step(self, action):
         actions = self._check_actions(action)
+        if not self._renders_every_step:
+            self._render_segmentation(
+                [n for n, (act, _) in actions.items() if act in (Action.PickUp, Action.PutDown)]
+            )
         failed: dict[str, str] = {}
         for i, a in enumerate(self.agents):
             if a.stopped:
@@ -367,6 +374,30 @@ class HeteroTidyEnv(BaseEnv):
             return self.manipulation.put_down(a, xy, counts, camera, target)
         return self.manipulation.drop(a)
 
+    def preview(
+        self, name: str, cell: tuple[int, int], rotation: int, horizon: int
+    ) -> tuple[Counter, tuple]:
+        """Privileged query (for the expert): what ``name``'s camera would see from a pose.
+
+        Returns the segmentation's pixel count per instance id and the camera (intrinsic,
+        extrinsic, width, height) as PickUp and PutDown use them. Nothing in the episode changes:
+        the robot is put back where it stands.
+        """
+        i = self.agent_names.index(name)
+        a = self.agents[i]
+        saved = a.cell, a.rotation, a.horizon
+        a.cell, a.rotation, a.horizon = cell, rotation, horizon
+        self._place_robot(i)
+        self.scene.update_render(update_sensors=True, update_human_render_cameras=False)
+        cam = self._sensors[name].camera._render_cameras[0]
+        cam.take_picture()
+        seg = cam.get_picture("PositionSegmentation")[..., 3]
+        counts = Counter(dict(zip(*np.unique(seg, return_counts=True), strict=True)))
+        camera = (cam.get_intrinsic_matrix(), cam.get_extrinsic_matrix(), cam.width, cam.height)
+        a.cell, a.rotation, a.horizon = saved
+        self._place_robot(i)
+        return counts, camera
+
     # ------------------------------------------------------------------ task state
     def _reasonable(self) -> list[str]:
         out = []
@@ -425,24 +456,41 @@ class HeteroTidyEnv(BaseEnv):
         return image[0] if image.ndim == 4 else image
 
     # ------------------------------------------------------------------ observations
+    @property
+    def _renders_every_step(self) -> bool:
+        visual = self.obs_mode_struct.visual
+        return bool(visual.rgb or visual.depth or visual.segmentation)
+
+    def _render_segmentation(self, names: list[str]) -> None:
+        """Fresh segmentations for ``names`` (obs_mode "none": PickUp/PutDown need them)."""
+        if not names:
+            return
+        self.scene.update_render(update_sensors=True, update_human_render_cameras=False)
+        for name in names:
+            cam = self._sensors[name].camera._render_cameras[0]
+            cam.take_picture()
+            self._last_seg[name] = cam.get_picture("PositionSegmentation")[..., 3].astype(np.int32)
+
     def get_obs(self, info: dict | None = None, unflattened: bool = False) -> dict:
         visual = self.obs_mode_struct.visual
-        # Always render: PickUp and PutDown judge visibility on the segmentation.
-        self.scene.update_render(update_sensors=True, update_human_render_cameras=False)
+        render = self._renders_every_step
+        if render:
+            self.scene.update_render(update_sensors=True, update_human_render_cameras=False)
         obs = {}
         for i, a in enumerate(self.agents):
             cam = self._sensors[a.name].camera._render_cameras[0]
-            cam.take_picture()
             o = {}
-            if visual.rgb:
-                o["rgb"] = np.ascontiguousarray(cam.get_picture("Color")[..., :3])
-            pos = cam.get_picture("PositionSegmentation")
-            seg = pos[..., 3].astype(np.int32)
-            self._last_seg[a.name] = seg
-            if visual.depth:
-                o["depth"] = pos[..., 2].astype(np.float32) * np.float32(-1e-3)
-            if visual.segmentation:
-                o["segmentation"] = seg
+            if render:
+                cam.take_picture()
+                if visual.rgb:
+                    o["rgb"] = np.ascontiguousarray(cam.get_picture("Color")[..., :3])
+                pos = cam.get_picture("PositionSegmentation")
+                seg = pos[..., 3].astype(np.int32)
+                self._last_seg[a.name] = seg
+                if visual.depth:
+                    o["depth"] = pos[..., 2].astype(np.float32) * np.float32(-1e-3)
+                if visual.segmentation:
+                    o["segmentation"] = seg
             x, y = self.hs.house.navgrid.center(*a.cell)
             extrinsic = np.eye(4, dtype=np.float32)
             extrinsic[:3] = cam.get_extrinsic_matrix()

@@ -104,6 +104,39 @@ class Manipulation:
             f = self.hs.furniture[fid]
             if sname and sname not in [s.name for s in f.surfaces]:
                 return f"{fid} has no surface {sname!r}; it has {[s.name for s in f.surfaces]}"
+        ranked = self.put_candidates(xy, counts, camera, target)
+        if not ranked:
+            what = target or "no receptacle surface"
+            return (
+                f"{what} is not visible within reach" if target else f"{what} visible within reach"
+            )
+        reasons = []
+        for _, f, s in ranked:
+            spot = self.free_spot(f, s, size, oid, xy)
+            if spot is None:
+                reasons.append(f"{f.id}/{s.name}")
+                continue
+            bottom, yaw = spot
+            hanging = is_hanging(s)
+            self.hs.bodies[oid].kinematic = hanging
+            self.hs.set_object_pose(oid, bottom, yaw)
+            agent.held = None
+            self.hs.state[oid] = ObjectState(f.id, s.name, f.room)
+            fell = [] if hanging else self.hs.settle(watch=[oid])
+            if fell:
+                self.hs.state[oid] = self.locate(oid)
+                return f"{oid} was not stable on {f.id}/{s.name} and fell"
+            return None
+        return f"no room for {oid} on " + ", ".join(reasons[:3])
+
+    def put_candidates(
+        self,
+        xy: np.ndarray,
+        counts: Counter,
+        camera: tuple[np.ndarray, np.ndarray, int, int],
+        target: str | None = None,
+    ) -> list[tuple[float, Furniture, Surface]]:
+        """Surfaces PutDown would try from here, best first (see the rules in actions.py)."""
         visible_links: dict[tuple[str, str], int] = {}
         for sid, n in counts.items():
             if sid in self.furniture_of_seg and n >= MIN_PIXELS:
@@ -125,30 +158,8 @@ class Manipulation:
                 if uv is None or not (0 <= uv[0] < width and 0 <= uv[1] < height):
                     continue
                 ranked.append((math.hypot(uv[0] - width / 2, uv[1] - height / 2), f, s))
-        if not ranked:
-            what = target or "no receptacle surface"
-            return (
-                f"{what} is not visible within reach" if target else f"{what} visible within reach"
-            )
         ranked.sort(key=lambda r: r[0])
-        reasons = []
-        for _, f, s in ranked:
-            spot = self.free_spot(f, s, size, oid, xy)
-            if spot is None:
-                reasons.append(f"{f.id}/{s.name}")
-                continue
-            bottom, yaw = spot
-            hanging = is_hanging(s)
-            self.hs.bodies[oid].kinematic = hanging
-            self.hs.set_object_pose(oid, bottom, yaw)
-            agent.held = None
-            self.hs.state[oid] = ObjectState(f.id, s.name, f.room)
-            fell = [] if hanging else self.hs.settle(watch=[oid])
-            if fell:
-                self.hs.state[oid] = self.locate(oid)
-                return f"{oid} was not stable on {f.id}/{s.name} and fell"
-            return None
-        return f"no room for {oid} on " + ", ".join(reasons[:3])
+        return ranked
 
     def surface_centre(self, f: Furniture, s: Surface) -> np.ndarray:
         centre, _ = f.surface_world(s)

@@ -24,6 +24,7 @@ from maniskill_tidy.sim.furniture_shapes import Part, box
 from maniskill_tidy.sim.house_scene import add_part
 
 Capability = tuple[int, int, int]
+STOWED_REACH = 0.1  # metres ahead of the robot's centre: out of view of a camera looking down
 
 
 @dataclass(frozen=True)
@@ -73,18 +74,18 @@ def robot_parts(kind: RobotKind) -> list[Part]:
         box(-0.05, kind.camera_ahead - 0.01, -0.07, 0.07, cam - 0.04, cam + 0.04, dark)
     )  # head
     if kind.manipulator:
-        ahead, z = kind.hold_offset
-        arm_z = z - 0.03
+        # The arm is stowed against the mast, behind the camera, so that it never hides the
+        # floor ahead from its own camera; a held object is carried further out (hold_offset).
+        _, z = kind.hold_offset
+        arm_z, reach = z - 0.03, STOWED_REACH
         parts += [
             box(-0.02, 0.03, -0.03, 0.03, base_h, arm_z + 0.03, c)
             if cam < 0.5
             else box(-0.02, 0.03, -0.03, 0.03, arm_z - 0.03, arm_z + 0.03, c),
-            box(0.0, ahead - 0.05, -0.025, 0.025, arm_z - 0.025, arm_z + 0.025, c),  # arm
-            box(ahead - 0.05, ahead - 0.03, -0.07, 0.07, arm_z - 0.03, arm_z + 0.03, dark),  # wrist
-            box(
-                ahead - 0.03, ahead + 0.06, -0.07, -0.055, arm_z - 0.02, arm_z + 0.02, dark
-            ),  # fingers
-            box(ahead - 0.03, ahead + 0.06, 0.055, 0.07, arm_z - 0.02, arm_z + 0.02, dark),
+            box(0.0, reach - 0.05, -0.025, 0.025, arm_z - 0.025, arm_z + 0.025, c),  # arm
+            box(reach - 0.05, reach - 0.03, -0.07, 0.07, arm_z - 0.03, arm_z + 0.03, dark),
+            box(reach - 0.03, reach, -0.07, -0.055, arm_z - 0.02, arm_z + 0.02, dark),  # fingers
+            box(reach - 0.03, reach, 0.055, 0.07, arm_z - 0.02, arm_z + 0.02, dark),
         ]
     return parts
 

@@ -13,7 +13,14 @@ import numpy as np
 
 from maniskill_tidy.houses.furnish import GAP, overlaps
 from maniskill_tidy.houses.navgrid import GridFrame, main_component, reach_cells
-from maniskill_tidy.houses.schema import CELL, Furniture, House, PlacedObject, Surface
+from maniskill_tidy.houses.schema import (
+    CELL,
+    Furniture,
+    House,
+    PlacedObject,
+    Surface,
+    rotated_bounds,
+)
 from maniskill_tidy.knowledge import FLOOR, load_catalog, load_placement
 
 MIN_OBJECTS, MAX_OBJECTS = 15, 40
@@ -54,6 +61,19 @@ def fits(slot: SurfaceSlot, size: list[float]) -> bool:
     if slot.surface.clearance is not None and size[2] > slot.surface.clearance:
         return False
     return (size[0] <= w and size[1] <= d) or (size[1] <= w and size[0] <= d)
+
+
+def open_footprint(f) -> tuple[float, float, float, float]:
+    """World bounds of ``f`` with its doors and drawers open (they swing out at the front, +y):
+    the floor there is hidden from the robots' cameras once the env opens them."""
+    extra = 0.0
+    for j in f.joints:
+        extra = max(extra, j.limits[1] if j.type == "prismatic" else j.link_size[0])
+    if extra == 0.0:
+        return f.footprint()
+    c, s = math.cos(f.yaw), math.sin(f.yaw)
+    centre = [f.position[0] - s * extra / 2, f.position[1] + c * extra / 2]
+    return rotated_bounds(centre, f.size[0], f.size[1] + extra, f.yaw)
 
 
 class ObjectPlacer:
@@ -116,7 +136,7 @@ class ObjectPlacer:
         candidates = np.argwhere(inner & ~self.free)
         if len(candidates) == 0:
             return None
-        floor_fps = [f.footprint() for f in self.house.furniture if f.parent is None]
+        floor_fps = [open_footprint(f) for f in self.house.furniture if f.parent is None]
         floor_fps += [
             o.footprint() for o in self.house.objects if o.receptacle == FLOOR and o.id != ignore
         ]

@@ -25,9 +25,17 @@ class Viewpoint:
 
 
 def viewpoints(
-    house: House, point: np.ndarray, camera_height: float, reach: float = REACH - 0.05
+    house: House,
+    point: np.ndarray,
+    camera_height: float,
+    reach: float = REACH - 0.05,
+    side_views: bool = False,
 ) -> list[Viewpoint]:
-    """Free cells within ``reach`` of ``point`` (x, y, z), nearest first, facing it."""
+    """Free cells within ``reach`` of ``point`` (x, y, z), nearest first, facing it.
+
+    Headings are multiples of 90 degrees: the one nearest the point's direction, and with
+    ``side_views`` also the second nearest when the point lies well off to that side too.
+    """
     frame, free = frame_of(house.navgrid), grid_array(house.navgrid)
     rows, cols = np.nonzero(free)
     xs, ys = frame.x[cols], frame.y[rows]
@@ -37,9 +45,15 @@ def viewpoints(
         if dist[i] > reach:
             break
         dx, dy = point[0] - xs[i], point[1] - ys[i]
-        rotation = int(round(math.degrees(math.atan2(dy, dx)) / 90.0)) * 90 % 360
-        ahead = max(abs(dx) if rotation in (0, 180) else abs(dy), 0.05)
-        pitch = math.degrees(math.atan2(camera_height - point[2], ahead))
-        horizon = int(np.clip(round(pitch / LOOK) * LOOK, *HORIZON_RANGE))
-        out.append(Viewpoint((int(rows[i]), int(cols[i])), rotation, horizon, float(dist[i])))
+        heading = math.degrees(math.atan2(dy, dx))
+        rotation = int(round(heading / 90.0)) * 90 % 360
+        rotations = [rotation]
+        if side_views and min(abs(dx), abs(dy)) > 0.1:
+            other = (int(math.floor(heading / 90.0)) * 90) % 360
+            rotations.append(other if other != rotation else (other + 90) % 360)
+        for rot in rotations:
+            ahead = max(abs(dx) if rot in (0, 180) else abs(dy), 0.05)
+            pitch = math.degrees(math.atan2(camera_height - point[2], ahead))
+            horizon = int(np.clip(round(pitch / LOOK) * LOOK, *HORIZON_RANGE))
+            out.append(Viewpoint((int(rows[i]), int(cols[i])), rot, horizon, float(dist[i])))
     return out

@@ -158,8 +158,8 @@ def body_parts(f: Furniture) -> list[Part]:
                 w / 2 - 0.03,
                 d / 2 - 0.9,
                 d / 2 - 0.03,
-                h,
-                h + 0.02,
+                h - 0.02,
+                h + 0.001,  # a duvet flush with the mattress: objects on the bed stay in view
                 (0.35, 0.5, 0.75),
             ),
         ]

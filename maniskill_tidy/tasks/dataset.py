@@ -31,7 +31,7 @@ from maniskill_tidy.tasks.metatask import MetaTask, generate_meta_tasks
 
 SHARD_SIZE = 50
 SPLITS = ("train", "val", "test")
-GENERATOR_VERSION = "1"
+GENERATOR_VERSION = "2"  # 2: misplacements no higher than the manipulator camera
 
 
 class DatasetError(RuntimeError):

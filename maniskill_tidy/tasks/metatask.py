@@ -8,6 +8,12 @@ A meta-task is *Single* when every misplaced object stays in its original room a
 when at least one changes room (the paper's definition). The goal is checkable from the spec
 alone: each misplaced object lists its original location and every surface of this house where
 it would be reasonable (the original one included, so a goal always exists).
+
+Misplaced objects only go where a robot can find and take them (:func:`findable`): on surfaces
+at most ``MAX_MISPLACED_HEIGHT`` above the floor (no robot camera is higher than 1.0 m, and a flat
+object on a higher shelf shows no pixels to any of them), not into drawers (they stack, so an
+open drawer hides the one below) or open-top bins (their walls hide the bottom), and with the
+object's centre within PickUp's reach of a free cell.
 """
 
 from __future__ import annotations
@@ -28,6 +34,8 @@ from maniskill_tidy.tasks.teams import SETTINGS
 META_TASKS_PER_HOUSE = 10
 STARTS_PER_TASK = 5
 MOVES = ("same_room_receptacle", "other_room_receptacle", "floor")
+MAX_MISPLACED_HEIGHT = 1.0  # metres: the manipulator's camera height
+PICK_REACH = 1.45  # metres: PickUp's 1.5 m reach from the robot's centre, with a margin
 MOVE_P = (0.4, 0.35, 0.25)
 
 
@@ -98,7 +106,21 @@ def reasonable_surfaces(house: House, object_type: str, size: list[float]) -> li
     return out
 
 
-def _try_move(placer: ObjectPlacer, house: House, obj, how: str, rng) -> Location | None:
+def findable(furniture, surface) -> bool:
+    """Whether an object misplaced on ``surface`` can be seen by some robot (see the top)."""
+    if surface.center[2] > MAX_MISPLACED_HEIGHT:
+        return False
+    if not surface.inside:
+        return True
+    if surface.link == "body":
+        return bool(furniture.joints)  # behind a door that the env opens; an open-top bin hides
+    joint = next(j for j in furniture.joints if j.name == surface.link)
+    return joint.type != "prismatic"
+
+
+def _try_move(
+    placer: ObjectPlacer, house: House, obj, how: str, rng, free_xy: np.ndarray
+) -> Location | None:
     knowledge = load_placement()
     rooms = {r.id: r.type for r in house.rooms}
     if how == "floor":
@@ -114,13 +136,18 @@ def _try_move(placer: ObjectPlacer, house: House, obj, how: str, rng) -> Locatio
         and not (s.furniture.id == obj.receptacle and s.surface.name == obj.surface)
         and not knowledge.D(obj.type, s.surface.receptacle_type, rooms[s.furniture.room])
         and fits(s, obj.size)
+        and findable(s.furniture, s.surface)
     ]
     for i in rng.permutation(len(slots))[:8]:
         slot = slots[int(i)]
         spot = placer.spot_on(slot, obj.size, ignore=obj.id)
-        if spot is not None:
+        if spot is not None and _within_reach(spot[0], free_xy):
             return Location(slot.furniture.id, slot.surface.name, slot.furniture.room, *spot)
     return None
+
+
+def _within_reach(position: list[float], free_xy: np.ndarray) -> bool:
+    return bool(np.min(np.hypot(*(free_xy - np.asarray(position[:2])).T)) <= PICK_REACH)
 
 
 def generate_meta_task(house: House, seed: int, house_index: int, task_index: int) -> MetaTask:
@@ -129,6 +156,7 @@ def generate_meta_task(house: House, seed: int, house_index: int, task_index: in
     work = copy.deepcopy(house)
     frame, free = house_grid(work)
     placer = ObjectPlacer(work, frame, free, rng)
+    free_xy = np.stack([frame.X[free], frame.Y[free]], axis=1)
     k = int(rng.integers(1, 6))
     multi_room = len(house.rooms) > 1
     candidates = [o for o in work.objects]
@@ -143,7 +171,7 @@ def generate_meta_task(house: House, seed: int, house_index: int, task_index: in
         first = allowed[int(rng.choice(len(allowed), p=p / p.sum()))]
         moves = [first] + [m for m in allowed if m != first]
         for how in moves:
-            target = _try_move(placer, work, obj, how, rng)
+            target = _try_move(placer, work, obj, how, rng, free_xy)
             if target is None:
                 continue
             original = Location(obj.receptacle, obj.surface, obj.room, list(obj.position), obj.yaw)

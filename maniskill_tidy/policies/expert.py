@@ -1,0 +1,261 @@
+"""The paper's heuristic shortest-path expert (Section 4): a privileged, centrally planned team.
+
+It reads the simulator: where every misplaced object lies, which surfaces are reasonable for it
+and which still have room. Manipulators are allocated the nearest untaken object (path length on
+the grid), walk the shortest path to a cell from which it can be seen and reached, pick it up,
+and put it on the nearest reasonable surface with room. Navigation-only agents scout: each goes
+to look at the nearest misplaced object no agent has seen yet. An agent with nothing left to do
+walks to the nearest cell where standing still cuts no path for the others, and stops.
+
+Everything it does goes through the env's actions and their visibility and reach rules; when an
+operation fails at one viewpoint it tries the next. Its per-step sub-tasks and sub-goals are the
+demonstrations for imitation learning (``training/demonstrations.py``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from maniskill_tidy.envs.actions import (
+    HORIZON_RANGE,
+    LOOK,
+    MIN_PIXELS,
+    Action,
+    AgentState,
+    Targeted,
+)
+from maniskill_tidy.envs.robots import robot_kind
+from maniskill_tidy.policies.base import EXPLORE, PLACE, PublicInfo, SubGoal, SubTask, Team
+from maniskill_tidy.policies.channel import Channel
+from maniskill_tidy.policies.navigation import GridPlanner, subgoal
+from maniskill_tidy.policies.viewpoints import Viewpoint, viewpoints
+from maniskill_tidy.policies.walker import Leg, NoViewpoint, Walker
+
+MAX_CANDIDATES = 24  # viewpoints considered per target
+RETRIES = 2  # rounds of viewpoints tried for an object before giving it up
+SURE_PIXELS = MIN_PIXELS + 10  # margin over the visibility threshold (other robots may occlude)
+HORIZONS = range(HORIZON_RANGE[0], HORIZON_RANGE[1] + 1, LOOK)
+
+
+@dataclass
+class Job:
+    kind: str  # "pick", "place", "look" or "park"
+    target: str  # object id, "furniture/surface", object id, ""
+    leg: Leg
+    subtask: SubTask
+    issued: bool = False  # the operation was sent last step; its outcome is due
+
+
+class ExpertTeam(Team):
+    name = "expert"
+    privileged = True
+    needs_images = False
+
+    def reset(self, info: PublicInfo, channel: Channel, env: Any | None = None) -> None:
+        if env is None:
+            raise ValueError("the expert is privileged: reset() needs the unwrapped env")
+        self.env = env
+        self.planner = GridPlanner(env.house)
+        self.walker = Walker(self.planner)
+        self.task = {m.object: m for m in env.episode.task.misplaced}
+        self.jobs: dict[str, Job | None] = {a: None for a in info.agents}
+        self.attempts: dict[str, int] = {}  # rounds of viewpoints that failed, per object
+        self.seen: set[str] = set()
+        self._labels: dict[str, tuple[SubTask, SubGoal]] = {}
+        self._surface_queue: dict[str, list[tuple[str, list[Viewpoint]]]] = {}
+
+    # ------------------------------------------------------------------ acting
+    def act(self, obs: dict[str, dict], info: dict) -> dict[str, Any]:
+        actions = {}
+        self._labels = {}
+        for agent in self.env.agents:
+            if agent.stopped:
+                continue
+            actions[agent.name] = self._act_one(agent, info)
+        return actions
+
+    def labels(self) -> dict[str, tuple[SubTask, SubGoal]]:
+        return self._labels
+
+    def _act_one(self, agent: AgentState, info: dict) -> Any:
+        job = self.jobs[agent.name]
+        if job is not None and job.issued:
+            job = self._outcome(agent, job, info["failed"].get(agent.name, ""))
+        for _ in range(4):  # a finished or impossible job hands over to the next one
+            if job is None:
+                job = self._allocate(agent)
+            self.jobs[agent.name] = job
+            others = {a.cell for a in self.env.agents if a is not agent}
+            stopped = {a.cell for a in self.env.agents if a.stopped}
+            if job.kind == "park" and agent.cell == job.leg.candidates[0].cell:
+                self._label(agent, job)
+                return Action.Stop
+            try:
+                action = self.walker.step(agent, job.leg, others, stopped)
+            except NoViewpoint:
+                if job.kind == "pick":
+                    self.attempts[job.target] = self.attempts.get(job.target, 0) + 1
+                elif job.kind == "look":
+                    self.seen.add(job.target)
+                job = self._next_place(agent, job) if job.kind == "place" else None
+                continue
+            self._label(agent, job)
+            if action is not None:
+                return action
+            return self._operate(agent, job)
+        return Action.Stop
+
+    def _operate(self, agent: AgentState, job: Job) -> Any:
+        if job.kind == "park":
+            return Action.Stop
+        if job.kind == "look":
+            self.seen.add(job.target)
+            self.jobs[agent.name] = None
+            return self._act_one(agent, {"failed": {}})
+        job.issued = True
+        op = Action.PickUp if job.kind == "pick" else Action.PutDown
+        return Targeted(op, job.target)
+
+    def _outcome(self, agent: AgentState, job: Job, failure: str) -> Job | None:
+        job.issued = False
+        if job.kind == "pick" and agent.held == job.target:
+            self.seen.add(job.target)
+            return self._place_job(agent)
+        if job.kind == "place" and agent.held is None:
+            return None
+        job.leg.give_up_goal()  # try the next viewpoint
+        return job
+
+    # ------------------------------------------------------------------ allocation
+    def _allocate(self, agent: AgentState) -> Job:
+        if agent.held is not None:
+            return self._place_job(agent)
+        kind = "pick" if agent.manipulator else "look"
+        taken = {j.target for j in self.jobs.values() if j is not None and j.kind == kind}
+        held = {a.held for a in self.env.agents if a.held}
+        if agent.manipulator:
+            reasonable = self._reasonable()
+            todo = [
+                o
+                for o in self.task
+                if o not in taken | held | reasonable and self.attempts.get(o, 0) < RETRIES
+            ]
+            fewest = min((self.attempts.get(o, 0) for o in todo), default=0)
+            todo = [o for o in todo if self.attempts.get(o, 0) == fewest]
+        else:
+            todo = [o for o in self.task if o not in taken | held | self.seen]
+        dist = self.planner.distances(agent.cell)
+        best = None
+        for oid in todo:
+            vps = self._viewpoints(agent, self._object_centre(oid))
+            d = min((dist[v.cell] for v in vps if v.cell in dist), default=None)
+            if d is not None and (best is None or d < best[0]):
+                best = (d, oid, vps)
+        if best is None:
+            return self._park_job(agent)
+        _, oid, vps = best
+        m = self.task[oid]
+        if kind == "look":
+            subtask = SubTask(EXPLORE, m.type)
+        else:
+            first = self._surfaces(oid, agent)
+            subtask = self._place_subtask(oid, first[0][0] if first else None)
+        sid = self.env.manipulation.seg_of_object[oid]
+        leg = Leg(vps, check=lambda vp: self._sees(agent, vp, sid))
+        return Job(kind, oid, leg, subtask)
+
+    def _place_job(self, agent: AgentState) -> Job:
+        self._surface_queue[agent.name] = self._surfaces(agent.held, agent)
+        return self._next_place(agent, None)
+
+    def _next_place(self, agent: AgentState, job: Job | None) -> Job:
+        queue = self._surface_queue.get(agent.name, [])
+        if not queue:
+            return self._park_job(agent)  # nowhere reasonable to go: keep holding it
+        target, vps = queue.pop(0)
+        leg = Leg(vps, check=lambda vp: self._can_put(agent, vp, target))
+        return Job("place", target, leg, self._place_subtask(agent.held, target))
+
+    def _park_job(self, agent: AgentState) -> Job:
+        stopped = {a.cell for a in self.env.agents if a.stopped}
+        others = {a.cell for a in self.env.agents if a is not agent}
+        cell = self.planner.parking(agent.cell, stopped, others)
+        leg = Leg([Viewpoint(cell, agent.rotation, agent.horizon, 0.0)])
+        return Job("park", "", leg, SubTask(EXPLORE))
+
+    # ------------------------------------------------------------------ privileged views
+    def _pitches(self, vp: Viewpoint) -> list[int]:
+        return sorted(HORIZONS, key=lambda h: (abs(h - vp.horizon), h))
+
+    def _sees(self, agent: AgentState, vp: Viewpoint, sid: int) -> Viewpoint | None:
+        """``vp`` with a camera pitch that shows the object well enough, or None."""
+        for h in self._pitches(vp):
+            counts, _ = self.env.preview(agent.name, vp.cell, vp.rotation, h)
+            if counts.get(sid, 0) >= SURE_PIXELS:
+                return Viewpoint(vp.cell, vp.rotation, h, vp.distance)
+        return None
+
+    def _can_put(self, agent: AgentState, vp: Viewpoint, target: str) -> Viewpoint | None:
+        xy = np.asarray(self.env.house.navgrid.center(*vp.cell))
+        for h in self._pitches(vp):
+            counts, camera = self.env.preview(agent.name, vp.cell, vp.rotation, h)
+            if self.env.manipulation.put_candidates(xy, counts, camera, target):
+                return Viewpoint(vp.cell, vp.rotation, h, vp.distance)
+        return None
+
+    # ------------------------------------------------------------------ privileged geometry
+    def _reasonable(self) -> set[str]:
+        return set(self.env.evaluate()["reasonable"])
+
+    def _object_centre(self, oid: str) -> np.ndarray:
+        size = self.env.manipulation.sizes[oid]
+        return self.env.hs.object_bottom(oid) + [0.0, 0.0, size[2] / 2]
+
+    def _viewpoints(self, agent: AgentState, point: np.ndarray) -> list:
+        height = robot_kind(agent.capability).camera_height
+        return viewpoints(self.env.house, point, height, side_views=True)[:MAX_CANDIDATES]
+
+    def _surfaces(self, oid: str, agent: AgentState) -> list[tuple[str, list]]:
+        """Reasonable surfaces with room for ``oid``, nearest first, with their viewpoints."""
+        manip, hs = self.env.manipulation, self.env.hs
+        size = manip.sizes[oid]
+        dist = self.planner.distances(agent.cell)
+        out = []
+        for fid, sname in self.task[oid].reasonable:
+            f = hs.furniture[fid]
+            s = f.surface(sname)
+            centre = manip.surface_centre(f, s)
+            if manip.free_spot(f, s, size, oid, centre[:2]) is None:
+                continue
+            vps = self._viewpoints(agent, centre + [0.0, 0.0, 0.02])
+            d = min((dist[v.cell] for v in vps if v.cell in dist), default=None)
+            if d is not None:
+                out.append((d, f"{fid}/{sname}", vps))
+        out.sort(key=lambda t: (t[0], t[1]))
+        return [(target, vps) for _, target, vps in out]
+
+    def _place_subtask(self, oid: str, target: str | None) -> SubTask:
+        m = self.task[oid]
+        if target is None:
+            return SubTask(PLACE, m.type)
+        fid, _, sname = target.partition("/")
+        f = self.env.hs.furniture[fid]
+        return SubTask(
+            PLACE, m.type, f.surface(sname).receptacle_type, self.env.hs.room_type[f.room]
+        )
+
+    def _label(self, agent: AgentState, job: Job) -> None:
+        leg = job.leg
+        if leg.goal is None:
+            leg.goal = leg.candidates[0]
+        path = leg.path if leg.path and leg.path[0] == agent.cell else [agent.cell, leg.goal.cell]
+        if agent.cell == leg.goal.cell:
+            path = [agent.cell]
+        ope = {"pick": "PickUp", "place": "PutDown"}.get(job.kind, "NoAction")
+        self._labels[agent.name] = (
+            job.subtask,
+            subgoal(agent, path, leg.goal.rotation, ope, job.kind == "park"),
+        )

@@ -1,0 +1,113 @@
+"""Shortest paths on the 0.25 m navigation grid and the discrete actions that follow them.
+
+The grid graph comes from networkx (4-connected free cells, as the env moves robots). Paths are
+planned around the cells other robots stand on; a planner is built once per house.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+import networkx as nx
+import numpy as np
+
+from maniskill_tidy.envs.actions import HORIZON_RANGE, LOOK, Action, AgentState
+from maniskill_tidy.houses.navgrid import grid_array
+from maniskill_tidy.houses.schema import House
+from maniskill_tidy.policies.base import SubGoal
+
+Cell = tuple[int, int]
+HEADING = {0: (0, 1), 90: (1, 0), 180: (0, -1), 270: (-1, 0)}  # rotation -> (d_row, d_col)
+SUBGOAL_RANGE = 4  # cells, the paper's -4..4
+
+
+class GridPlanner:
+    def __init__(self, house: House) -> None:
+        free = grid_array(house.navgrid)
+        rows, cols = free.shape
+        graph = nx.grid_2d_graph(rows, cols)
+        graph.remove_nodes_from([(int(r), int(c)) for r, c in zip(*np.nonzero(~free), strict=True)])
+        self.graph = graph
+        self.house = house
+
+    def distances(self, source: Cell, blocked: Iterable[Cell] = ()) -> dict[Cell, int]:
+        """Path length in moves from ``source`` to every reachable free cell."""
+        return nx.single_source_shortest_path_length(self._view(blocked, source), source)
+
+    def path(self, source: Cell, goal: Cell, blocked: Iterable[Cell] = ()) -> list[Cell] | None:
+        """Cells from ``source`` to ``goal`` (both included), avoiding ``blocked``; None if cut."""
+        view = self._view(blocked, source)
+        if goal not in view:
+            return None
+        try:
+            return nx.shortest_path(view, source, goal)
+        except nx.NetworkXNoPath:
+            return None
+
+    def parking(self, source: Cell, stopped: Iterable[Cell], occupied: Iterable[Cell]) -> Cell:
+        """The nearest cell where a robot can stop for good without cutting the free space."""
+        stopped, occupied = set(stopped), set(occupied)
+        rest = self.graph.subgraph(n for n in self.graph if n not in stopped)
+        cut = set(nx.articulation_points(rest))
+        reach = nx.single_source_shortest_path_length(self._view(occupied, source), source)
+        for cell, _ in sorted(reach.items(), key=lambda kv: (kv[1], kv[0])):
+            if cell not in cut and cell not in stopped:
+                return cell
+        return source
+
+    def _view(self, blocked: Iterable[Cell], source: Cell) -> nx.Graph:
+        blocked = set(blocked) - {source}
+        if not blocked:
+            return self.graph
+        return nx.subgraph_view(self.graph, filter_node=lambda n: n not in blocked)
+
+
+def move_towards(agent: AgentState, nxt: Cell) -> Action:
+    """The action that brings an agent one cell closer to the neighbouring cell ``nxt``."""
+    d = (nxt[0] - agent.cell[0], nxt[1] - agent.cell[1])
+    if d == HEADING[agent.rotation]:
+        return Action.MoveAhead
+    if d == HEADING[(agent.rotation + 90) % 360]:
+        return Action.MoveLeft
+    if d == HEADING[(agent.rotation - 90) % 360]:
+        return Action.MoveRight
+    return Action.RotateRight  # it lies behind: after a turn it is to one side
+
+
+def turn_towards(agent: AgentState, rotation: int, horizon: int | None) -> Action | None:
+    """The action that turns the base (first) and tilts the camera towards a view; None if there."""
+    diff = (rotation - agent.rotation) % 360
+    if diff:
+        return Action.RotateLeft if diff == 90 else Action.RotateRight
+    if horizon is not None:
+        horizon = int(np.clip(horizon, *HORIZON_RANGE))
+        if horizon > agent.horizon:
+            return Action.LookDown
+        if horizon < agent.horizon:
+            return Action.LookUp
+    return None
+
+
+def subgoal(
+    agent: AgentState, path: list[Cell] | None, rotation: int, ope: str, stop: bool
+) -> SubGoal:
+    """The paper's sub-goal: the furthest cell of ``path`` within 4 cells, in the agent's frame."""
+    path = path or [agent.cell]
+    far = path[-1]
+    for cell in path:
+        if max(abs(cell[0] - agent.cell[0]), abs(cell[1] - agent.cell[1])) > SUBGOAL_RANGE:
+            break
+        far = cell
+    reached = far == path[-1]
+    dr, dc = far[0] - agent.cell[0], far[1] - agent.cell[1]
+    fr, fc = HEADING[agent.rotation]  # ahead
+    rr, rc = HEADING[(agent.rotation - 90) % 360]  # right
+    dy, dx = dr * fr + dc * fc, dr * rr + dc * rc
+    drot = (rotation - agent.rotation) % 360 if reached else 0
+    return SubGoal(int(dx), int(dy), int(drot), ope if reached else "NoAction", stop and reached)
+
+
+def look_horizon(camera_height: float, distance: float, height: float) -> int:
+    """The camera pitch (multiple of 30 degrees) that looks at a point ``distance`` ahead."""
+    pitch = np.degrees(np.arctan2(camera_height - height, max(distance, 0.05)))
+    return int(np.clip(round(pitch / LOOK) * LOOK, *HORIZON_RANGE))
