@@ -30,6 +30,34 @@ def _generate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _eval(args: argparse.Namespace) -> int:
+    from maniskill_tidy.eval.runner import RunConfig, evaluate, run_dir
+
+    cfg = RunConfig(
+        policy=args.policy,
+        setting=args.setting,
+        split=args.split,
+        dataset=args.dataset,
+        episodes=args.episodes,
+        seed=args.seed,
+        task_type=args.task_type,
+    )
+    try:
+        summary = evaluate(cfg, Path(args.out), workers=args.workers, record=args.record)
+    except (ValueError, KeyError) as err:
+        raise SystemExit(f"maniskill-tidy eval: {err}") from None
+    rows = summary["metrics"]
+    print(f"{args.policy}, setting {args.setting}, {args.split}: {summary['episodes']} episodes")
+    for split, m in rows.items():
+        if m["episodes"]:
+            print(
+                f"  {split:6s} Success {m['Success']:.3f}  %PS {m['%PS']:.3f}  "
+                f"%FM {m['%FM']:.3f}  #PL {m['#PL']:.1f}  ACm {m['ACm']:.1f}  ({m['episodes']} ep)"
+            )
+    print(f"wrote {run_dir(Path(args.out), cfg) / 'summary.json'}")
+    return 0
+
+
 def _validate(args: argparse.Namespace) -> int:
     from maniskill_tidy.tasks.validate import validate_dataset
 
@@ -180,6 +208,19 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--seed", type=int, default=0)
     e.add_argument("--out", default="out/episode")
     e.set_defaults(func=_run_episode)
+
+    ev = sub.add_parser("eval", help="evaluate a team on a split (resumable, JSONL + summary)")
+    ev.add_argument("--policy", required=True, help="a team name (see `maniskill-tidy policies`)")
+    ev.add_argument("--setting", default="I", help="I, II or a preset JSON file")
+    ev.add_argument("--split", default="test", choices=("train", "val", "test"))
+    ev.add_argument("--task-type", default="all", choices=("all", "single", "cross"))
+    ev.add_argument("--episodes", type=int, help="evenly spread subset of the split (default all)")
+    ev.add_argument("--workers", type=int, default=1)
+    ev.add_argument("--record", default="none", choices=("none", "failures", "all"))
+    ev.add_argument("--dataset", help="dataset directory (default: the env's shipped dataset)")
+    ev.add_argument("--seed", type=int, default=0)
+    ev.add_argument("--out", default=".", help="writes eval/results/... and recordings/... here")
+    ev.set_defaults(func=_eval)
 
     k = sub.add_parser("knowledge", help="type counts; reasonable places of an object type")
     k.add_argument("object", nargs="?")

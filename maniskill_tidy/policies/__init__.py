@@ -1,0 +1,16 @@
+"""Teams: the privileged expert, the Random baseline and heuristic teams that see through
+their cameras, with the communication patterns of the paper's baselines."""
+
+from __future__ import annotations
+
+from maniskill_tidy.policies.base import Team
+from maniskill_tidy.policies.expert import ExpertTeam
+from maniskill_tidy.policies.random_team import RandomTeam
+
+POLICIES: dict[str, type[Team]] = {cls.name: cls for cls in (ExpertTeam, RandomTeam)}
+
+
+def make_team(name: str) -> Team:
+    if name not in POLICIES:
+        raise ValueError(f"unknown policy {name!r}; choose one of {sorted(POLICIES)}")
+    return POLICIES[name]()

@@ -1,0 +1,1 @@
+"""Metrics, the resumable episode runner and the leaderboard."""

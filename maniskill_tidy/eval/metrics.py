@@ -1,0 +1,77 @@
+"""The paper's metrics (Section 6.2), from per-episode records, split Single / Cross / All.
+
+- Success: share of episodes where every misplaced object ends in a reasonable place.
+- %PS (%PartialSuccess): mean over episodes of K_suc / K, objects re-placed reasonably.
+- %FM (%FindMisObj): mean of K_det / K, misplaced objects detected *and picked up* by an agent.
+- #PL (#PathLength): mean episode length, the largest number of steps any agent took (<= 300).
+- ACm (AvgCom): mean of Total / (Len * N), message dimensions received per agent per step.
+- CES: max(0, 10000 * (Suc - Suc_SA) / ACm), against the single-agent baseline's success;
+  undefined (None) without communication (ACm = 0), as the paper leaves it blank.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+SPLITS = ("Single", "Cross", "All")
+METRICS = ("Success", "%PS", "%FM", "#PL", "ACm")
+
+
+@dataclass(frozen=True)
+class EpisodeRecord:
+    """One finished episode: a line of the runner's JSONL file."""
+
+    episode: str
+    task_kind: str  # "Single" or "Cross"
+    k: int  # misplaced objects
+    success: bool
+    reasonable: int  # K_suc
+    found: int  # K_det: misplaced objects some agent picked up
+    length: int  # Len: max steps over agents
+    comm: int  # Total: dimensions received over the episode
+    agents: int  # N
+    seed: int
+    seconds: float = 0.0
+    failed_actions: int = 0
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> EpisodeRecord:
+        return cls(**d)
+
+
+def avg_com(r: EpisodeRecord) -> float:
+    return r.comm / (max(r.length, 1) * r.agents)
+
+
+def split_metrics(records: list[EpisodeRecord]) -> dict[str, float | int | None]:
+    if not records:
+        return {m: None for m in METRICS} | {"episodes": 0}
+    return {
+        "Success": float(np.mean([r.success for r in records])),
+        "%PS": float(np.mean([r.reasonable / r.k for r in records])),
+        "%FM": float(np.mean([r.found / r.k for r in records])),
+        "#PL": float(np.mean([r.length for r in records])),
+        "ACm": float(np.mean([avg_com(r) for r in records])),
+        "episodes": len(records),
+    }
+
+
+def summarize(records: list[EpisodeRecord]) -> dict[str, dict]:
+    """Metrics for Single, Cross and All episodes."""
+    return {
+        "Single": split_metrics([r for r in records if r.task_kind == "Single"]),
+        "Cross": split_metrics([r for r in records if r.task_kind == "Cross"]),
+        "All": split_metrics(list(records)),
+    }
+
+
+def ces(success: float, success_sa: float, acm: float) -> float | None:
+    """Communication efficiency score; None when nothing was sent."""
+    if acm <= 0:
+        return None
+    return max(0.0, 10000.0 * (success - success_sa) / acm)

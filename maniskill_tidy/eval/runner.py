@@ -1,0 +1,299 @@
+"""Run a team over a split's episodes: resumable, parallel, one JSONL line per episode.
+
+A run directory holds ``run.json`` (what was asked: policy, setting, split, dataset hash, seed,
+episode selection), ``episodes.jsonl`` (one :class:`EpisodeRecord` per finished episode, appended
+and flushed as each one ends) and ``summary.json`` (metrics, written atomically at the end).
+Rerunning the same command skips the episodes already in the JSONL file, so an interrupted run
+resumes where it stopped and never counts an episode twice; a torn last line is cut off; a run
+directory made with different arguments is refused. Episode ``i`` always gets seed
+``seed + i``, whatever the number of workers, so results do not depend on it.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass
+from multiprocessing import get_context
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from maniskill_tidy.eval.metrics import EpisodeRecord, summarize
+from maniskill_tidy.policies import POLICIES, make_team
+from maniskill_tidy.policies.base import PublicInfo
+from maniskill_tidy.policies.channel import CENTRAL, Channel
+from maniskill_tidy.tasks.dataset import write_atomic
+
+RECORD_MODES = ("none", "failures", "all")
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    policy: str
+    setting: str
+    split: str
+    dataset: str | None  # None: the env's shipped default dataset
+    episodes: int | None  # None: every episode of the split
+    seed: int = 0
+    task_type: str = "all"
+
+    def env_kwargs(self, images: bool) -> dict:
+        team_cls = POLICIES[self.policy]
+        return {
+            "setting": getattr(team_cls, "team_override", None) or self.setting,
+            "dataset": self.dataset,
+            "split": self.split,
+            "task_type": self.task_type,
+            "obs_mode": "rgb+depth+segmentation" if images else "none",
+            "reward_mode": "none",
+        }
+
+
+def run_dir(out: Path, cfg: RunConfig) -> Path:
+    return Path(out) / "eval" / "results" / f"setting_{cfg.setting}" / cfg.policy
+
+
+def code_version() -> str:
+    try:
+        here = Path(__file__).resolve().parent
+        rev = subprocess.run(
+            ["git", "-C", str(here), "describe", "--always", "--dirty"],
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+        return rev or "unknown"
+    except (OSError, subprocess.CalledProcessError):
+        from importlib.metadata import version
+
+        return f"maniskill-tidy {version('maniskill-tidy')}"
+
+
+# ---------------------------------------------------------------------- one episode
+def make_env(cfg: RunConfig, images: bool):
+    import gymnasium as gym
+
+    import maniskill_tidy  # noqa: F401  (registers the env)
+
+    return gym.make("HeteroTidy-v1", **cfg.env_kwargs(images))
+
+
+def run_episode(env, team, index: int, seed: int, recorder=None) -> EpisodeRecord:
+    """Play episode ``index`` of the env's split with ``team``; log it if ``recorder`` is given."""
+    u = env.unwrapped
+    start = time.perf_counter()
+    obs, info = env.reset(seed=seed, options={"episode": index})
+    central = getattr(team, "central", False)
+    channel = Channel(u.agent_names, central=central)
+    team.reset(PublicInfo.of(u, seed), channel, u if team.privileged else None)
+    if recorder is not None:
+        recorder.start(u, team, channel)
+    done, t, failed = False, 0, 0
+    while not done:
+        channel.new_step()
+        actions = team.act(obs, info)
+        obs, _, terminated, truncated, info = env.step(actions)
+        t += 1
+        failed += sum(1 for reason in info["failed"].values() if reason)
+        if recorder is not None:
+            recorder.log_step(t, obs, actions, info, channel, team.labels())
+        done = terminated or truncated
+    misplaced = set(u.misplaced)
+    record = EpisodeRecord(
+        episode=u.episode.id,
+        task_kind=u.episode.task.kind,
+        k=len(misplaced),
+        success=bool(info["success"]),
+        reasonable=int(info["n_reasonable"]),
+        found=len(misplaced & set(info["picked"])),
+        length=max(a.steps for a in u.agents),
+        comm=channel.total,
+        agents=len(u.agents),
+        seed=seed,
+        seconds=round(time.perf_counter() - start, 3),
+        failed_actions=failed,
+    )
+    if recorder is not None:
+        recorder.finish(record)
+    return record
+
+
+# ---------------------------------------------------------------------- workers
+_worker: dict = {}
+
+
+def _init_worker(cfg: RunConfig, images: bool, record: str, out: str) -> None:
+    _worker.update(cfg=cfg, env=make_env(cfg, images), team=make_team(cfg.policy))
+    _worker.update(record=record, out=out, images=images)
+
+
+def _work(index: int) -> EpisodeRecord:
+    cfg, env, team = _worker["cfg"], _worker["env"], _worker["team"]
+    recorder = None
+    if _worker["record"] == "all":
+        recorder = _recorder(cfg, Path(_worker["out"]))
+    return run_episode(env, team, index, cfg.seed + index, recorder)
+
+
+def _recorder(cfg: RunConfig, out: Path):
+    from maniskill_tidy.recording.episode_log import EpisodeRecorder
+
+    return EpisodeRecorder(out / "recordings" / f"setting_{cfg.setting}" / cfg.policy)
+
+
+def _record_failures(cfg: RunConfig, records: list[EpisodeRecord], indices: dict, out: Path):
+    """Play failed episodes again with images and a recorder (runs are deterministic)."""
+    failed = [r for r in records if not r.success]
+    if not failed:
+        return
+    env, team = make_env(cfg, images=True), make_team(cfg.policy)
+    for r in tqdm(failed, desc="recording failures", unit="ep"):
+        run_episode(env, team, indices[r.episode], r.seed, _recorder(cfg, out))
+    env.close()
+
+
+# ---------------------------------------------------------------------- a run
+def select(n_total: int, n: int | None) -> list[int]:
+    """``n`` episode indices spread evenly over the split (all of them when ``n`` is None)."""
+    if n is None or n >= n_total:
+        return list(range(n_total))
+    if n <= 0:
+        raise ValueError(f"--episodes must be positive, got {n}")
+    return sorted({int(i) for i in np.linspace(0, n_total, n, endpoint=False)})
+
+
+def read_records(path: Path) -> list[EpisodeRecord]:
+    """Records in a JSONL file; a torn last line (an interrupted write) is cut off the file."""
+    if not path.exists():
+        return []
+    records, good = [], 0
+    with open(path, "rb") as f:
+        data = f.read()
+    for line in data.splitlines(keepends=True):
+        try:
+            if not line.endswith(b"\n"):
+                raise ValueError("torn line")
+            records.append(EpisodeRecord.from_dict(json.loads(line)))
+        except (ValueError, TypeError):
+            break
+        good += len(line)
+    if good < len(data):
+        with open(path, "r+b") as f:
+            f.truncate(good)
+    return records
+
+
+def evaluate(
+    cfg: RunConfig,
+    out: Path = Path("."),
+    workers: int = 1,
+    record: str = "none",
+    progress: bool = True,
+) -> dict:
+    """Run (or resume) an evaluation and write its summary; returns the summary."""
+    if cfg.policy not in POLICIES:
+        raise ValueError(f"unknown policy {cfg.policy!r}; choose one of {sorted(POLICIES)}")
+    if record not in RECORD_MODES:
+        raise ValueError(f"--record must be one of {RECORD_MODES}, got {record!r}")
+    from maniskill_tidy.envs.episodes import EpisodeSet
+    from maniskill_tidy.tasks.teams import team as parse_team
+
+    team_cls = POLICIES[cfg.policy]
+    setting = getattr(team_cls, "team_override", None) or cfg.setting
+    members = parse_team(setting)
+    episodes = EpisodeSet(cfg.dataset, cfg.split, cfg.task_type, None, members)
+    if getattr(team_cls, "team_override", None):  # SA starts where Setting I's first agent does
+        episodes = EpisodeSet(cfg.dataset, cfg.split, cfg.task_type, "I", members)
+    chosen = select(len(episodes), cfg.episodes)
+    ids = {episodes.get(i).id: i for i in chosen}
+
+    directory = run_dir(out, cfg)
+    directory.mkdir(parents=True, exist_ok=True)
+    config = {
+        **cfg.__dict__,
+        "dataset_hash": episodes.dataset_hash,
+        "episode_count": len(chosen),
+    }
+    config_path = directory / "run.json"
+    if config_path.exists():
+        before = json.loads(config_path.read_text())
+        if before != config:
+            diff = {k: (before.get(k), v) for k, v in config.items() if before.get(k) != v}
+            raise ValueError(
+                f"{directory} holds a run with other arguments {diff} (before, now); "
+                "pass another --out or delete that directory"
+            )
+    else:
+        write_atomic(config_path, json.dumps(config, indent=1, sort_keys=True).encode())
+
+    jsonl = directory / "episodes.jsonl"
+    records = [r for r in read_records(jsonl) if r.episode in ids]
+    done = {r.episode for r in records}
+    todo = [i for i in chosen if episodes.get(i).id not in done]
+    images = team_cls.needs_images or record == "all"
+    started = time.perf_counter()
+    bar = tqdm(
+        total=len(chosen),
+        initial=len(done),
+        desc=f"{cfg.policy} setting {cfg.setting} {cfg.split}",
+        unit="ep",
+        disable=not progress,
+    )
+    with open(jsonl, "a") as sink:
+
+        def keep(r: EpisodeRecord) -> None:
+            sink.write(json.dumps(r.to_dict(), sort_keys=True) + "\n")
+            sink.flush()
+            os.fsync(sink.fileno())
+            records.append(r)
+            bar.update(1)
+            bar.set_postfix(success=f"{np.mean([x.success for x in records]):.3f}")
+
+        if todo and workers <= 1:
+            _init_worker(cfg, images, record, str(out))
+            for i in todo:
+                keep(_work(i))
+            _worker["env"].close()
+            _worker.clear()
+        elif todo:
+            ctx = get_context("spawn")
+            with ProcessPoolExecutor(
+                workers,
+                mp_context=ctx,
+                initializer=_init_worker,
+                initargs=(cfg, images, record, str(out)),
+            ) as pool:
+                futures = [pool.submit(_work, i) for i in todo]
+                for fut in as_completed(futures):
+                    keep(fut.result())
+    bar.close()
+    elapsed = time.perf_counter() - started
+    if record == "failures":
+        _record_failures(cfg, records, ids, out)
+
+    summary = {
+        "policy": cfg.policy,
+        "setting": cfg.setting,
+        "split": cfg.split,
+        "team": [list(c) for c in members],
+        "communication": getattr(team_cls, "communication", "none"),
+        "privileged": team_cls.privileged,
+        "perception": getattr(team_cls, "perception", ""),
+        "dataset": cfg.dataset or "default (shipped with the package)",
+        "dataset_hash": episodes.dataset_hash,
+        "code_version": code_version(),
+        "seed": cfg.seed,
+        "episodes": len(records),
+        "metrics": summarize(records),
+        "wall_seconds_this_session": round(elapsed, 1),
+        "workers": workers,
+        "episode_seconds_mean": round(float(np.mean([r.seconds for r in records])), 3),
+        "central_endpoint": CENTRAL if getattr(team_cls, "central", False) else None,
+    }
+    write_atomic(directory / "summary.json", json.dumps(summary, indent=1).encode())
+    return summary
