@@ -58,6 +58,14 @@ def _eval(args: argparse.Namespace) -> int:
     return 0
 
 
+def _leaderboard(args: argparse.Namespace) -> int:
+    from maniskill_tidy.eval.leaderboard import write_leaderboard
+
+    out = write_leaderboard(Path(args.root))
+    print(f"wrote {out} and {out.with_name('leaderboard.png')}")
+    return 0
+
+
 def _validate(args: argparse.Namespace) -> int:
     from maniskill_tidy.tasks.validate import validate_dataset
 
@@ -221,6 +229,10 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--seed", type=int, default=0)
     ev.add_argument("--out", default=".", help="writes eval/results/... and recordings/... here")
     ev.set_defaults(func=_eval)
+
+    lb = sub.add_parser("leaderboard", help="eval/LEADERBOARD.md and a plot from run summaries")
+    lb.add_argument("--root", default="eval", help="folder holding results/ (default eval)")
+    lb.set_defaults(func=_leaderboard)
 
     k = sub.add_parser("knowledge", help="type counts; reasonable places of an object type")
     k.add_argument("object", nargs="?")
