@@ -66,6 +66,19 @@ def _leaderboard(args: argparse.Namespace) -> int:
     return 0
 
 
+def _replay(args: argparse.Namespace) -> int:
+    import shutil
+    import subprocess
+
+    path = Path(args.file)
+    if not path.is_file() or path.suffix != ".rrd":
+        raise SystemExit(f"maniskill-tidy replay: {path} is not an .rrd recording")
+    viewer = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
+    cmd = [viewer, str(path)] + (["--web-viewer"] if args.web else [])
+    print(" ".join(cmd))
+    return subprocess.call(cmd)
+
+
 def _validate(args: argparse.Namespace) -> int:
     from maniskill_tidy.tasks.validate import validate_dataset
 
@@ -233,6 +246,11 @@ def build_parser() -> argparse.ArgumentParser:
     lb = sub.add_parser("leaderboard", help="eval/LEADERBOARD.md and a plot from run summaries")
     lb.add_argument("--root", default="eval", help="folder holding results/ (default eval)")
     lb.set_defaults(func=_leaderboard)
+
+    rp = sub.add_parser("replay", help="open an episode recording (.rrd) in the rerun viewer")
+    rp.add_argument("file")
+    rp.add_argument("--web", action="store_true", help="serve the web viewer instead")
+    rp.set_defaults(func=_replay)
 
     k = sub.add_parser("knowledge", help="type counts; reasonable places of an object type")
     k.add_argument("object", nargs="?")

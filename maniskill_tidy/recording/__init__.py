@@ -1,0 +1,1 @@
+"""rerun recordings (.rrd) of episodes, replayed offline with ``maniskill-tidy replay``."""
