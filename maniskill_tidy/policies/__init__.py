@@ -5,9 +5,27 @@ from __future__ import annotations
 
 from maniskill_tidy.policies.base import Team
 from maniskill_tidy.policies.expert import ExpertTeam
+from maniskill_tidy.policies.heuristic import (
+    BroadcastTeam,
+    CentralTeam,
+    DetectionCommTeam,
+    NoCommTeam,
+    SingleAgent,
+)
 from maniskill_tidy.policies.random_team import RandomTeam
 
-POLICIES: dict[str, type[Team]] = {cls.name: cls for cls in (ExpertTeam, RandomTeam)}
+POLICIES: dict[str, type[Team]] = {
+    cls.name: cls
+    for cls in (
+        ExpertTeam,
+        RandomTeam,
+        SingleAgent,
+        NoCommTeam,
+        DetectionCommTeam,
+        BroadcastTeam,
+        CentralTeam,
+    )
+}
 
 
 def make_team(name: str) -> Team:

@@ -35,6 +35,9 @@ class PublicInfo:
     capabilities: list[Capability]
     episode_id: str
     seed: int
+    # The segmentation's label table, id -> Instance(kind, type, id): with ground-truth
+    # segmentation it stands in for a trained detector's class (and instance) output.
+    instances: dict = dataclasses.field(default_factory=dict)
 
     @classmethod
     def of(cls, env, seed: int) -> PublicInfo:
@@ -44,6 +47,7 @@ class PublicInfo:
             capabilities=list(env.team),
             episode_id=env.episode.id,
             seed=seed,
+            instances=dict(env.instances),
         )
 
 

@@ -26,17 +26,19 @@ from maniskill_tidy.envs.actions import (
     Action,
     AgentState,
     Targeted,
+    move_target,
 )
 from maniskill_tidy.envs.robots import robot_kind
 from maniskill_tidy.policies.base import EXPLORE, PLACE, PublicInfo, SubGoal, SubTask, Team
 from maniskill_tidy.policies.channel import Channel
-from maniskill_tidy.policies.navigation import GridPlanner, subgoal
+from maniskill_tidy.policies.navigation import Cell, GridPlanner, move_towards, subgoal
 from maniskill_tidy.policies.viewpoints import Viewpoint, viewpoints
-from maniskill_tidy.policies.walker import Leg, NoViewpoint, Walker
+from maniskill_tidy.policies.walker import Leg, NoViewpoint, Walker, wait_action
 
 MAX_CANDIDATES = 24  # viewpoints considered per target
 RETRIES = 2  # rounds of viewpoints tried for an object before giving it up
 SURE_PIXELS = MIN_PIXELS + 10  # margin over the visibility threshold (other robots may occlude)
+RESERVED = 4  # cells of a manipulator's path ahead that scouts clear
 HORIZONS = range(HORIZON_RANGE[0], HORIZON_RANGE[1] + 1, LOOK)
 
 
@@ -69,13 +71,45 @@ class ExpertTeam(Team):
 
     # ------------------------------------------------------------------ acting
     def act(self, obs: dict[str, dict], info: dict) -> dict[str, Any]:
+        """Manipulators plan first and ignore scouts in their way; a scout standing on the next
+        cells of a manipulator's path steps aside (this is what breaks corridor deadlocks)."""
         actions = {}
         self._labels = {}
-        for agent in self.env.agents:
+        self._reserved: set[Cell] = set()
+        self._entering: set[Cell] = set()  # cells higher-ranked agents move into this step
+        ranked = sorted(self.env.agents, key=lambda a: (not a.manipulator, a.name))
+        for rank, agent in enumerate(ranked):
             if agent.stopped:
                 continue
+            self._yielding_to = {a.cell for a in ranked[:rank]} | {
+                a.cell for a in ranked if a.stopped
+            }
+            if agent.cell in self._reserved:
+                actions[agent.name] = self._step_aside(agent)
+                continue
             actions[agent.name] = self._act_one(agent, info)
+            if actions[agent.name] in (Action.MoveAhead, Action.MoveLeft, Action.MoveRight):
+                self._entering.add(move_target(agent, actions[agent.name]))
+            job = self.jobs.get(agent.name)
+            if job is not None and job.leg.path:
+                self._reserved.update([agent.cell, *job.leg.path[:RESERVED]])
         return actions
+
+    def _step_aside(self, agent: AgentState) -> Any:
+        """Head for the nearest cell off the reserved paths (passing through them if needed)."""
+        occupied = {a.cell for a in self.env.agents if a is not agent} | self._entering
+        dist = self.planner.distances(agent.cell, occupied)
+        free = [c for c in dist if c not in self._reserved]
+        if not free:
+            return wait_action(agent)
+        goal = min(free, key=lambda c: (dist[c], c))
+        path = self.planner.path(agent.cell, goal, occupied)
+        if not path or len(path) < 2:
+            return wait_action(agent)
+        action = move_towards(agent, path[1])
+        if action in (Action.MoveAhead, Action.MoveLeft, Action.MoveRight):
+            self._entering.add(path[1])
+        return action
 
     def labels(self) -> dict[str, tuple[SubTask, SubGoal]]:
         return self._labels
@@ -88,7 +122,7 @@ class ExpertTeam(Team):
             if job is None:
                 job = self._allocate(agent)
             self.jobs[agent.name] = job
-            others = {a.cell for a in self.env.agents if a is not agent}
+            others = (self._yielding_to | self._reserved | self._entering) - {agent.cell}
             stopped = {a.cell for a in self.env.agents if a.stopped}
             if job.kind == "park" and agent.cell == job.leg.candidates[0].cell:
                 self._label(agent, job)
@@ -103,6 +137,10 @@ class ExpertTeam(Team):
                 job = self._next_place(agent, job) if job.kind == "place" else None
                 continue
             self._label(agent, job)
+            if action in (Action.MoveAhead, Action.MoveLeft, Action.MoveRight):
+                nxt = move_target(agent, action)
+                if any(a.cell == nxt for a in self.env.agents if a is not agent):
+                    return wait_action(agent)  # a scout is stepping aside
             if action is not None:
                 return action
             return self._operate(agent, job)

@@ -1,0 +1,1 @@
+"""What agents make of their own camera images."""
