@@ -79,6 +79,19 @@ def _replay(args: argparse.Namespace) -> int:
     return subprocess.call(cmd)
 
 
+def _demos(args: argparse.Namespace) -> int:
+    from maniskill_tidy.training.demonstrations import write_demonstrations
+
+    m = write_demonstrations(
+        Path(args.out), args.dataset, args.split, args.setting, tasks=args.tasks, seed=args.seed
+    )
+    print(
+        f"wrote {m['trajectories']} trajectories ({m['steps']} steps, expert success "
+        f"{m['expert_success']:.3f}) to {Path(args.out) / f'setting_{args.setting}' / args.split}"
+    )
+    return 0
+
+
 def _validate(args: argparse.Namespace) -> int:
     from maniskill_tidy.tasks.validate import validate_dataset
 
@@ -251,6 +264,15 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("file")
     rp.add_argument("--web", action="store_true", help="serve the web viewer instead")
     rp.set_defaults(func=_replay)
+
+    dm = sub.add_parser("demos", help="expert demonstrations (sub-tasks, sub-goals) for a split")
+    dm.add_argument("--dataset", help="dataset directory (default: the env's shipped dataset)")
+    dm.add_argument("--setting", default="I")
+    dm.add_argument("--split", default="train", choices=("train", "val", "test"))
+    dm.add_argument("--tasks", type=int, help="only the first N meta-tasks (5 starts each)")
+    dm.add_argument("--seed", type=int, default=0)
+    dm.add_argument("--out", default="data/demos")
+    dm.set_defaults(func=_demos)
 
     k = sub.add_parser("knowledge", help="type counts; reasonable places of an object type")
     k.add_argument("object", nargs="?")

@@ -236,6 +236,7 @@ def evaluate(
     done = {r.episode for r in records}
     todo = [i for i in chosen if episodes.get(i).id not in done]
     images = team_cls.needs_images or record == "all"
+    version = code_version()  # of the code that runs the episodes, taken before they run
     started = time.perf_counter()
     bar = tqdm(
         total=len(chosen),
@@ -286,7 +287,7 @@ def evaluate(
         "perception": getattr(team_cls, "perception", ""),
         "dataset": cfg.dataset or "default (shipped with the package)",
         "dataset_hash": episodes.dataset_hash,
-        "code_version": code_version(),
+        "code_version": version,
         "seed": cfg.seed,
         "episodes": len(records),
         "metrics": summarize(records),

@@ -86,6 +86,16 @@ class ExpertTeam(Team):
             }
             if agent.cell in self._reserved:
                 actions[agent.name] = self._step_aside(agent)
+                job = self.jobs.get(agent.name)
+                subtask = job.subtask if job is not None else SubTask(EXPLORE)
+                act = actions[agent.name]
+                path = [agent.cell]
+                if act in (Action.MoveAhead, Action.MoveLeft, Action.MoveRight):
+                    path.append(move_target(agent, act))
+                self._labels[agent.name] = (
+                    subtask,
+                    subgoal(agent, path, agent.rotation, "NoAction", False),
+                )
                 continue
             actions[agent.name] = self._act_one(agent, info)
             if actions[agent.name] in (Action.MoveAhead, Action.MoveLeft, Action.MoveRight):
@@ -289,7 +299,9 @@ class ExpertTeam(Team):
         leg = job.leg
         if leg.goal is None:
             leg.goal = leg.candidates[0]
-        path = leg.path if leg.path and leg.path[0] == agent.cell else [agent.cell, leg.goal.cell]
+        path = list(leg.path) if leg.path else [agent.cell, leg.goal.cell]
+        if path[0] != agent.cell:  # the walker already stepped past this cell
+            path = [agent.cell, *path]
         if agent.cell == leg.goal.cell:
             path = [agent.cell]
         ope = {"pick": "PickUp", "place": "PutDown"}.get(job.kind, "NoAction")

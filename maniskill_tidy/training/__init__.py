@@ -1,0 +1,1 @@
+"""Demonstrations for imitation learning (and, later, behaviour cloning)."""
