@@ -2,7 +2,7 @@
 PY := .venv/bin/python
 DEMO_DIR := out/demo
 
-.PHONY: setup test test-slow demo bench lint clean
+.PHONY: setup test test-slow demo bench leaderboard lint clean
 
 setup:
 	@bash scripts/setup.sh
@@ -23,6 +23,22 @@ demo: setup
 
 bench: setup
 	$(PY) -m maniskill_tidy.bench
+
+# The leaderboard's runs: the 120-house dataset, then every policy on its test split (each
+# `eval` resumes if interrupted; rerunning skips finished episodes).
+DATA120 ?= data/tidy120
+EVAL = $(PY) -m maniskill_tidy.cli eval --split test --dataset $(DATA120) --workers 2
+leaderboard: setup
+	test -f $(DATA120)/manifest.json || $(PY) -m maniskill_tidy.cli generate --houses 120 --seed 0 --workers 2 --out $(DATA120)
+	$(EVAL) --policy expert --setting I
+	$(EVAL) --policy expert --setting II
+	$(EVAL) --policy random --setting I --episodes 200
+	$(EVAL) --policy random --setting II --episodes 200
+	for p in sa heuristic-none heuristic-detection heuristic-broadcast heuristic-central; do \
+	  $(EVAL) --policy $$p --setting I --episodes 100 || exit 1; done
+	for p in sa heuristic-none heuristic-detection heuristic-broadcast heuristic-central; do \
+	  $(EVAL) --policy $$p --setting II --episodes 100 || exit 1; done
+	$(PY) -m maniskill_tidy.cli leaderboard
 
 lint: setup
 	$(PY) -m ruff check maniskill_tidy tests

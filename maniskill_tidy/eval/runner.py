@@ -220,23 +220,32 @@ def evaluate(
         "episode_count": len(chosen),
     }
     config_path = directory / "run.json"
+    version = code_version()  # of the code that runs the episodes, taken before they run
+    versions = [version]
     if config_path.exists():
         before = json.loads(config_path.read_text())
-        if before != config:
-            diff = {k: (before.get(k), v) for k, v in config.items() if before.get(k) != v}
+        informative = ("dataset", "code_versions")  # a moved dataset with the same hash is fine
+        diff = {
+            k: (before.get(k), v)
+            for k, v in config.items()
+            if k not in informative and before.get(k) != v
+        }
+        if diff:
             raise ValueError(
                 f"{directory} holds a run with other arguments {diff} (before, now); "
                 "pass another --out or delete that directory"
             )
-    else:
-        write_atomic(config_path, json.dumps(config, indent=1, sort_keys=True).encode())
+        versions = list(dict.fromkeys([*before.get("code_versions", []), version]))
+    write_atomic(
+        config_path,
+        json.dumps({**config, "code_versions": versions}, indent=1, sort_keys=True).encode(),
+    )
 
     jsonl = directory / "episodes.jsonl"
     records = [r for r in read_records(jsonl) if r.episode in ids]
     done = {r.episode for r in records}
     todo = [i for i in chosen if episodes.get(i).id not in done]
     images = team_cls.needs_images or record == "all"
-    version = code_version()  # of the code that runs the episodes, taken before they run
     started = time.perf_counter()
     bar = tqdm(
         total=len(chosen),
@@ -287,7 +296,8 @@ def evaluate(
         "perception": getattr(team_cls, "perception", ""),
         "dataset": cfg.dataset or "default (shipped with the package)",
         "dataset_hash": episodes.dataset_hash,
-        "code_version": version,
+        "code_version": versions[-1],
+        "code_versions": versions,  # every version that ran part of this run (resumed runs)
         "seed": cfg.seed,
         "episodes": len(records),
         "metrics": summarize(records),
