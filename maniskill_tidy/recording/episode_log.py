@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 import rerun as rr
+import rerun.blueprint as rrb
 
 from maniskill_tidy.envs.actions import Action, Targeted
 from maniskill_tidy.sim.appearance import hashed_colour
@@ -35,6 +36,35 @@ MISPLACED, TIDIED, OTHER = (230, 40, 40), (40, 200, 70), (150, 150, 150)
 
 def recording_path(directory: Path, episode_id: str) -> Path:
     return Path(directory) / (episode_id.replace("/", "__") + ".rrd")
+
+
+def layout(agents: list[str]) -> rrb.Blueprint:
+    """The viewer's opening layout: house in 3D, each agent's camera, communication, metrics."""
+    cameras = [
+        rrb.Spatial2DView(
+            origin=f"world/cameras/{a}",
+            name=a,
+            contents=[f"world/cameras/{a}/rgb", f"world/cameras/{a}/segmentation"],
+        )
+        for a in agents
+    ]
+    return rrb.Blueprint(
+        rrb.Horizontal(
+            rrb.Vertical(
+                rrb.Spatial3DView(origin="world", name="house"),
+                rrb.Horizontal(*cameras),
+                row_shares=[3, 2],
+            ),
+            rrb.Vertical(
+                rrb.GraphView(origin="comm/groups", name="communication groups"),
+                rrb.TensorView(origin="comm/matrix", name="values sent (sender x receiver)"),
+                rrb.TimeSeriesView(origin="metrics", name="metrics"),
+                rrb.TextLogView(origin="/", name="actions, failures, messages"),
+            ),
+            column_shares=[3, 2],
+        ),
+        collapse_panels=True,
+    )
 
 
 def _yaw_quat(yaw: float) -> list[float]:
@@ -53,6 +83,7 @@ class EpisodeRecorder:
         self.tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
         self.rec = rr.RecordingStream(APP_ID, recording_id=env.episode.id)
         self.rec.save(str(self.tmp))
+        self.rec.send_blueprint(layout([a.name for a in env.agents]))
         self.rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         self._log_house()
         self._log_legend()
