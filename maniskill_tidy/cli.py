@@ -43,7 +43,9 @@ def _eval(args: argparse.Namespace) -> int:
         task_type=args.task_type,
     )
     try:
-        summary = evaluate(cfg, Path(args.out), workers=args.workers, record=args.record)
+        summary = evaluate(
+            cfg, Path(args.out), workers=args.workers, record=args.record, images=args.images
+        )
     except (ValueError, KeyError) as err:
         raise SystemExit(f"maniskill-tidy eval: {err}") from None
     rows = summary["metrics"]
@@ -253,6 +255,11 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--record", default="none", choices=("none", "failures", "all"))
     ev.add_argument("--dataset", help="dataset directory (default: the env's shipped dataset)")
     ev.add_argument("--seed", type=int, default=0)
+    ev.add_argument(
+        "--images",
+        action="store_true",
+        help="render every camera every step even for teams that ignore images (timing)",
+    )
     ev.add_argument("--out", default=".", help="writes eval/results/... and recordings/... here")
     ev.set_defaults(func=_eval)
 

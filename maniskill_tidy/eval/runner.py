@@ -194,6 +194,7 @@ def evaluate(
     workers: int = 1,
     record: str = "none",
     progress: bool = True,
+    images: bool = False,
 ) -> dict:
     """Run (or resume) an evaluation and write its summary; returns the summary."""
     if cfg.policy not in POLICIES:
@@ -245,7 +246,7 @@ def evaluate(
     records = [r for r in read_records(jsonl) if r.episode in ids]
     done = {r.episode for r in records}
     todo = [i for i in chosen if episodes.get(i).id not in done]
-    images = team_cls.needs_images or record == "all"
+    images = images or team_cls.needs_images or record == "all"
     started = time.perf_counter()
     bar = tqdm(
         total=len(chosen),
@@ -303,6 +304,7 @@ def evaluate(
         "metrics": summarize(records),
         "wall_seconds_this_session": round(elapsed, 1),
         "workers": workers,
+        "rendered_images": images,
         "episode_seconds_mean": round(float(np.mean([r.seconds for r in records])), 3),
         "central_endpoint": CENTRAL if getattr(team_cls, "central", False) else None,
     }
