@@ -127,7 +127,19 @@ def run_episode(env, team, index: int, seed: int, recorder=None) -> EpisodeRecor
 _worker: dict = {}
 
 
+def _die_with_parent() -> None:
+    """Linux: a worker gets SIGTERM when the runner dies (else a killed run leaves it running)."""
+    try:
+        import ctypes
+        import signal
+
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, int(signal.SIGTERM))  # PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+
+
 def _init_worker(cfg: RunConfig, images: bool, record: str, out: str) -> None:
+    _die_with_parent()
     _worker.update(cfg=cfg, env=make_env(cfg, images), team=make_team(cfg.policy))
     _worker.update(record=record, out=out, images=images)
 
