@@ -138,8 +138,12 @@ def _die_with_parent() -> None:
         pass
 
 
-def _init_worker(cfg: RunConfig, images: bool, record: str, out: str) -> None:
+def _init_pool_worker(*args) -> None:
     _die_with_parent()
+    _init_worker(*args)
+
+
+def _init_worker(cfg: RunConfig, images: bool, record: str, out: str) -> None:
     _worker.update(cfg=cfg, env=make_env(cfg, images), team=make_team(cfg.policy))
     _worker.update(record=record, out=out, images=images)
 
@@ -288,7 +292,7 @@ def evaluate(
             with ProcessPoolExecutor(
                 workers,
                 mp_context=ctx,
-                initializer=_init_worker,
+                initializer=_init_pool_worker,
                 initargs=(cfg, images, record, str(out)),
             ) as pool:
                 futures = [pool.submit(_work, i) for i in todo]
