@@ -253,10 +253,13 @@ def evaluate(
                 "pass another --out or delete that directory"
             )
         versions = list(dict.fromkeys([*before.get("code_versions", []), version]))
-    write_atomic(
-        config_path,
-        json.dumps({**config, "code_versions": versions}, indent=1, sort_keys=True).encode(),
+    wall = (
+        json.loads(config_path.read_text()).get("wall_seconds", 0.0)
+        if config_path.exists()
+        else 0.0
     )
+    run_info = {**config, "code_versions": versions, "wall_seconds": wall}
+    write_atomic(config_path, json.dumps(run_info, indent=1, sort_keys=True).encode())
 
     jsonl = directory / "episodes.jsonl"
     records = [r for r in read_records(jsonl) if r.episode in ids]
@@ -300,6 +303,9 @@ def evaluate(
                     keep(fut.result())
     bar.close()
     elapsed = time.perf_counter() - started
+    if todo:  # wall time accumulates over the sessions that ran episodes
+        run_info["wall_seconds"] = round(run_info["wall_seconds"] + elapsed, 1)
+        write_atomic(config_path, json.dumps(run_info, indent=1, sort_keys=True).encode())
     if record == "failures":
         _record_failures(cfg, records, ids, out)
 
@@ -318,7 +324,7 @@ def evaluate(
         "seed": cfg.seed,
         "episodes": len(records),
         "metrics": summarize(records),
-        "wall_seconds_this_session": round(elapsed, 1),
+        "wall_seconds": run_info["wall_seconds"],  # summed over sessions that ran episodes
         "workers": workers,
         "rendered_images": images,
         "episode_seconds_mean": round(float(np.mean([r.seconds for r in records])), 3),
