@@ -14,7 +14,7 @@ def dataset_stats(root: Path) -> dict:
     root = Path(root)
     manifest = read_manifest(root)
     per_split: dict[str, dict[str, Counter]] = {
-        s: {"k": Counter(), "kind": Counter(), "how": Counter()} for s in SPLITS
+        s: {"k": Counter(), "kind": Counter(), "how": Counter(), "where": Counter()} for s in SPLITS
     }
     for name in sorted(manifest["files"]):
         split = name.split("/")[0]
@@ -23,8 +23,17 @@ def dataset_stats(root: Path) -> dict:
             per_split[split]["kind"][t["kind"]] += 1
             for m in t["misplaced"]:
                 per_split[split]["how"][m["how"]] += 1
+                surface = m["misplaced"]["surface"] or ""
+                per_split[split]["where"][
+                    "floor"
+                    if m["misplaced"]["receptacle"] == "Floor"
+                    else "inside"
+                    if surface.startswith(("in", "shelf", "cabinet"))
+                    else "on top"
+                ] += 1
     total = {
-        key: sum((per_split[s][key] for s in SPLITS), Counter()) for key in ("k", "kind", "how")
+        key: sum((per_split[s][key] for s in SPLITS), Counter())
+        for key in ("k", "kind", "how", "where")
     }
 
     def shares(c: Counter) -> dict:
@@ -43,6 +52,7 @@ def dataset_stats(root: Path) -> dict:
             "k_share": shares(counters["k"]),
             "kind_share": shares(counters["kind"]),
             "move_share": shares(counters["how"]),
+            "where_share": shares(counters["where"]),
         }
     return out
 
@@ -60,6 +70,12 @@ def format_stats(stats: dict) -> str:
             f"{split:<6} {s['tasks']:>6}  {ks}   {s['kind_share'].get('Single', 0):.3f}"
             f"   {s['kind_share'].get('Cross', 0):.3f}"
         )
+    where = stats["splits"]["all"]["where_share"]
+    lines.append(
+        "misplaced objects lie: "
+        + ", ".join(f"{k} {v:.2f}" for k, v in sorted(where.items()))
+        + " (inside: shelves and compartments, whose doors the env opens)"
+    )
     return "\n".join(lines)
 
 

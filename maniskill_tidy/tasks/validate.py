@@ -33,7 +33,7 @@ from maniskill_tidy.houses.schema import (
 )
 from maniskill_tidy.knowledge import FLOOR, load_placement
 from maniskill_tidy.tasks.dataset import DatasetError, read_manifest, read_shard, sha256
-from maniskill_tidy.tasks.metatask import MetaTask, label, reasonable_surfaces
+from maniskill_tidy.tasks.metatask import MetaTask, findable, label, reasonable_surfaces
 from maniskill_tidy.tasks.starts import ROTATIONS
 from maniskill_tidy.tasks.teams import SETTINGS
 
@@ -141,6 +141,11 @@ def check_task(house: House, task: MetaTask) -> list[str]:
                 )
                 continue
             rtype, fp_reach = slot.surface.receptacle_type, REACH
+            if not findable(slot.furniture, slot.surface):
+                problems.append(
+                    f"{where}: {m.object} misplaced on {loc.receptacle}/{loc.surface}, where no "
+                    "robot camera can see it (too high, a drawer or an open-top bin)"
+                )
         if knowledge.D(m.type, rtype, rooms[loc.room]):
             problems.append(
                 f"{where}: {m.object} 'misplaced' on {rtype} in {rooms[loc.room]}, "
