@@ -252,7 +252,7 @@ def evaluate(
                 f"{directory} holds a run with other arguments {diff} (before, now); "
                 "pass another --out or delete that directory"
             )
-        versions = list(dict.fromkeys([*before.get("code_versions", []), version]))
+        versions = before.get("code_versions", []) or [version]
     wall = (
         json.loads(config_path.read_text()).get("wall_seconds", 0.0)
         if config_path.exists()
@@ -303,8 +303,10 @@ def evaluate(
                     keep(fut.result())
     bar.close()
     elapsed = time.perf_counter() - started
-    if todo:  # wall time accumulates over the sessions that ran episodes
+    if todo:  # wall time and code versions accumulate over the sessions that ran episodes
         run_info["wall_seconds"] = round(run_info["wall_seconds"] + elapsed, 1)
+        versions = list(dict.fromkeys([*versions, version]))
+        run_info["code_versions"] = versions
         write_atomic(config_path, json.dumps(run_info, indent=1, sort_keys=True).encode())
     if record == "failures":
         _record_failures(cfg, records, ids, out)

@@ -297,15 +297,14 @@ class ExpertTeam(Team):
 
     def _label(self, agent: AgentState, job: Job) -> None:
         leg = job.leg
-        if leg.goal is None:
-            leg.goal = leg.candidates[0]
-        path = list(leg.path) if leg.path else [agent.cell, leg.goal.cell]
+        goal = leg.goal or leg.candidates[0]  # None after giving up on a blocked goal
+        path = list(leg.path) if leg.path else [agent.cell, goal.cell]
         if path[0] != agent.cell:  # the walker already stepped past this cell
             path = [agent.cell, *path]
-        if agent.cell == leg.goal.cell:
+        if agent.cell == goal.cell:
             path = [agent.cell]
         ope = {"pick": "PickUp", "place": "PutDown"}.get(job.kind, "NoAction")
         self._labels[agent.name] = (
             job.subtask,
-            subgoal(agent, path, leg.goal.rotation, ope, job.kind == "park"),
+            subgoal(agent, path, goal.rotation, ope, job.kind == "park"),
         )

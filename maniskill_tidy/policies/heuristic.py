@@ -288,11 +288,12 @@ class HeuristicTeam(Team):
                 self.jobs[a.name] = None
                 continue
             ope = {"pick": "PickUp", "place": "PutDown"}.get(kind, "NoAction")
-            path = leg.path if leg.path and leg.path[0] == a.cell else [a.cell, leg.goal.cell]
-            self._labels[a.name] = (
-                subtask,
-                subgoal(a, path, leg.goal.rotation, ope, kind == "park"),
-            )
+            goal = leg.goal or leg.candidates[0]  # None after giving up on a blocked goal
+            path = list(leg.path) if leg.path else [a.cell, goal.cell]
+            if path[0] != a.cell:
+                path = [a.cell, *path]
+            label = subgoal(a, path, goal.rotation, ope, kind == "park")
+            self._labels[a.name] = (subtask, label)
             if action is not None:
                 return action
             if kind in ("pick", "place"):
