@@ -64,6 +64,11 @@ FAR = 30.0  # metres, camera far plane
 LIMIT = 1e4  # bound of poses (m) and camera matrices in the observation space
 
 
+def pixel_counts(seg: np.ndarray) -> Counter:
+    """Pixels per instance id of a segmentation image."""
+    return Counter(dict(zip(*np.unique(seg, return_counts=True), strict=True)))
+
+
 def default_render_backend() -> str:
     """ "gpu" when SAPIEN finds a CUDA device to render with, else the CPU (lavapipe) backend."""
     try:
@@ -288,8 +293,10 @@ class HeteroTidyEnv(BaseEnv):
     def step(self, action):
         actions = self._check_actions(action)
         if not self._renders_every_step:
-            self._render_segmentation(
-                [n for n, (act, _) in actions.items() if act in (Action.PickUp, Action.PutDown)]
+            self._last_seg.update(
+                self._render_segmentations(
+                    [n for n, (act, _) in actions.items() if act in (Action.PickUp, Action.PutDown)]
+                )
             )
         failed: dict[str, str] = {}
         for i, a in enumerate(self.agents):
@@ -356,11 +363,7 @@ class HeteroTidyEnv(BaseEnv):
         a = self.agents[i]
         xy = np.asarray(self.hs.house.navgrid.center(*a.cell))
         seg = self._last_seg.get(a.name)
-        counts = (
-            Counter()
-            if seg is None
-            else Counter(dict(zip(*np.unique(seg, return_counts=True), strict=True)))
-        )
+        counts = Counter() if seg is None else pixel_counts(seg)
         if act == Action.PickUp:
             reason = self.manipulation.pick_up(a, xy, counts, target)
             if reason is None:
@@ -369,9 +372,7 @@ class HeteroTidyEnv(BaseEnv):
                 self._place_robot(i)
             return reason
         if act == Action.PutDown:
-            cam = self._sensors[a.name].camera._render_cameras[0]
-            camera = (cam.get_intrinsic_matrix(), cam.get_extrinsic_matrix(), cam.width, cam.height)
-            return self.manipulation.put_down(a, xy, counts, camera, target)
+            return self.manipulation.put_down(a, xy, counts, self._camera_matrices(a.name), target)
         return self.manipulation.drop(a)
 
     def preview(
@@ -388,12 +389,8 @@ class HeteroTidyEnv(BaseEnv):
         saved = a.cell, a.rotation, a.horizon
         a.cell, a.rotation, a.horizon = cell, rotation, horizon
         self._place_robot(i)
-        self.scene.update_render(update_sensors=True, update_human_render_cameras=False)
-        cam = self._sensors[name].camera._render_cameras[0]
-        cam.take_picture()
-        seg = cam.get_picture("PositionSegmentation")[..., 3]
-        counts = Counter(dict(zip(*np.unique(seg, return_counts=True), strict=True)))
-        camera = (cam.get_intrinsic_matrix(), cam.get_extrinsic_matrix(), cam.width, cam.height)
+        counts = pixel_counts(self._render_segmentations([name])[name])
+        camera = self._camera_matrices(name)
         a.cell, a.rotation, a.horizon = saved
         self._place_robot(i)
         return counts, camera
@@ -461,15 +458,22 @@ class HeteroTidyEnv(BaseEnv):
         visual = self.obs_mode_struct.visual
         return bool(visual.rgb or visual.depth or visual.segmentation)
 
-    def _render_segmentation(self, names: list[str]) -> None:
-        """Fresh segmentations for ``names`` (obs_mode "none": PickUp/PutDown need them)."""
+    def _render_segmentations(self, names: list[str]) -> dict[str, np.ndarray]:
+        """Fresh segmentations of ``names``' cameras, without the other images."""
         if not names:
-            return
+            return {}
         self.scene.update_render(update_sensors=True, update_human_render_cameras=False)
+        out = {}
         for name in names:
             cam = self._sensors[name].camera._render_cameras[0]
             cam.take_picture()
-            self._last_seg[name] = cam.get_picture("PositionSegmentation")[..., 3].astype(np.int32)
+            out[name] = cam.get_picture("PositionSegmentation")[..., 3].astype(np.int32)
+        return out
+
+    def _camera_matrices(self, name: str) -> tuple[np.ndarray, np.ndarray, int, int]:
+        """(intrinsic, extrinsic, width, height) as PickUp and PutDown use them."""
+        cam = self._sensors[name].camera._render_cameras[0]
+        return cam.get_intrinsic_matrix(), cam.get_extrinsic_matrix(), cam.width, cam.height
 
     def get_obs(self, info: dict | None = None, unflattened: bool = False) -> dict:
         visual = self.obs_mode_struct.visual

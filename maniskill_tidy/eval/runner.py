@@ -223,9 +223,9 @@ def evaluate(
     team_cls = POLICIES[cfg.policy]
     setting = getattr(team_cls, "team_override", None) or cfg.setting
     members = parse_team(setting)
+    # As the env does: the smallest setting that fits the team gives the starts (for SA, one
+    # manipulator, that is Setting I's first start).
     episodes = EpisodeSet(cfg.dataset, cfg.split, cfg.task_type, None, members)
-    if getattr(team_cls, "team_override", None):  # SA starts where Setting I's first agent does
-        episodes = EpisodeSet(cfg.dataset, cfg.split, cfg.task_type, "I", members)
     chosen = select(len(episodes), cfg.episodes)
     ids = {episodes.get(i).id: i for i in chosen}
 

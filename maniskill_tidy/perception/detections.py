@@ -81,21 +81,41 @@ def explored_cells(obs: dict, house: House, stride: int = 4) -> set[tuple[int, i
     return set(zip(rows.tolist(), cols.tolist(), strict=True))
 
 
-def resting_place(house: House, d: Detection) -> tuple[str, str | None, str | None]:
+@dataclass(frozen=True)
+class SurfaceSpot:
+    furniture: str
+    surface: str
+    room: str
+    height: float
+    bounds: tuple[float, float, float, float]
+
+
+def surface_table(house: House) -> list[SurfaceSpot]:
+    """Every surface of the house in world coordinates, computed once per house."""
+    out = []
+    for f in house.furniture:
+        for s in f.surfaces:
+            centre, bounds = f.surface_world(s)
+            out.append(SurfaceSpot(f.id, s.name, f.room, centre[2], bounds))
+    return out
+
+
+def resting_place(
+    house: House, d: Detection, surfaces: list[SurfaceSpot]
+) -> tuple[str, str | None, str | None]:
     """(receptacle id or Floor, surface name, room id) under a detection; ("", None, None) if
     it rests on nothing known (e.g. it is being carried)."""
     x, y = float(d.position[0]), float(d.position[1])
     if d.bottom < ON_FLOOR:
         return FLOOR, None, house.room_at(x, y)
     best = None
-    for f in house.furniture:
-        for s in f.surfaces:
-            (cx, cy, cz), (x0, y0, x1, y1) = f.surface_world(s)
-            if not (x0 - 0.05 <= x <= x1 + 0.05 and y0 - 0.05 <= y <= y1 + 0.05):
-                continue
-            gap = abs(d.bottom - cz)
-            if gap < ON_SURFACE and (best is None or gap < best[0]):
-                best = (gap, f.id, s.name, f.room)
+    for s in surfaces:
+        x0, y0, x1, y1 = s.bounds
+        if not (x0 - 0.05 <= x <= x1 + 0.05 and y0 - 0.05 <= y <= y1 + 0.05):
+            continue
+        gap = abs(d.bottom - s.height)
+        if gap < ON_SURFACE and (best is None or gap < best[0]):
+            best = (gap, s)
     if best is None:
         return "", None, None
-    return best[1], best[2], best[3]
+    return best[1].furniture, best[1].surface, best[1].room

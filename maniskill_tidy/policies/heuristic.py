@@ -30,7 +30,12 @@ import numpy as np
 from maniskill_tidy.envs.actions import Action, AgentState, Targeted
 from maniskill_tidy.envs.robots import robot_kind
 from maniskill_tidy.knowledge import FLOOR, ROOM_TYPES, load_catalog, load_placement
-from maniskill_tidy.perception.detections import detect_objects, explored_cells, resting_place
+from maniskill_tidy.perception.detections import (
+    detect_objects,
+    explored_cells,
+    resting_place,
+    surface_table,
+)
 from maniskill_tidy.policies.base import EXPLORE, PLACE, PublicInfo, SubGoal, SubTask, Team
 from maniskill_tidy.policies.channel import CENTRAL, Channel
 from maniskill_tidy.policies.navigation import Cell, GridPlanner, subgoal
@@ -79,6 +84,9 @@ class HeuristicTeam(Team):
         self.jobs: dict[str, tuple[str, str, Leg, SubTask] | None] = {a: None for a in info.agents}
         self.pending: dict[str, tuple[str, str] | None] = {a: None for a in info.agents}
         self.instances = info.instances
+        self.seg_of = {inst.id: sid for sid, inst in info.instances.items()}
+        self.furniture = self.house.furniture_by_id()
+        self.surfaces = surface_table(self.house)
         self._states: dict[str, AgentState] = {}
         self._stopped_cells: list[Cell] = []
         self._bad_surfaces: dict[str, set[str]] = {}
@@ -98,14 +106,13 @@ class HeuristicTeam(Team):
         for d in detect_objects(o, self.instances):
             if d.seg_id == int(o["held"]):
                 continue
-            receptacle, surface, room = resting_place(self.house, d)
+            receptacle, surface, room = resting_place(self.house, d, self.surfaces)
             if not receptacle:
                 continue  # carried by someone, or in mid-air
             if receptacle == FLOOR:
                 misplaced = True
             else:
-                f = next(f for f in self.house.furniture if f.id == receptacle)
-                rtype = f.surface(surface).receptacle_type
+                rtype = self.furniture[receptacle].surface(surface).receptacle_type
                 misplaced = not self.knowledge.D(d.type, rtype, self.room_type[room])
             mem.objects[d.object_id] = Known(d.object_id, d.seg_id, d.type, d.position, misplaced)
             sees_misplaced |= misplaced
@@ -130,14 +137,9 @@ class HeuristicTeam(Team):
         )
 
     def _crop(self, a: AgentState) -> np.ndarray:
-        grid = self.memory[a.name].explored
-        r0, c0 = a.cell[0] - CROP // 2, a.cell[1] - CROP // 2
         out = np.zeros((CROP, CROP), np.float32)
-        rs, cs = (
-            slice(max(r0, 0), min(r0 + CROP, grid.shape[0])),
-            slice(max(c0, 0), min(c0 + CROP, grid.shape[1])),
-        )
-        out[rs.start - r0 : rs.stop - r0, cs.start - c0 : cs.stop - c0] = grid[rs, cs]
+        in_grid, in_crop = crop_window(a.cell, self.memory[a.name].explored.shape)
+        out[in_crop] = self.memory[a.name].explored[in_grid]
         return out
 
     def _detections(self, name: str) -> np.ndarray:
@@ -188,12 +190,8 @@ class HeuristicTeam(Team):
 
     @staticmethod
     def _merge_crop(mem: Memory, cell: Cell, crop: np.ndarray) -> None:
-        grid = mem.explored
-        r0, c0 = cell[0] - CROP // 2, cell[1] - CROP // 2
-        for i, j in zip(*np.nonzero(crop > 0), strict=True):
-            r, c = r0 + i, c0 + j
-            if 0 <= r < grid.shape[0] and 0 <= c < grid.shape[1]:
-                grid[r, c] = True
+        in_grid, in_crop = crop_window(cell, mem.explored.shape)
+        mem.explored[in_grid] |= crop[in_crop] > 0
 
     def _central_node(self, agents: list[AgentState]) -> None:
         """Merge what everyone sent, give each free manipulator the nearest unclaimed object."""
@@ -402,7 +400,7 @@ class HeuristicTeam(Team):
         return out
 
     def _seg_of(self, oid: str | None) -> int:
-        return next((s for s, i in self.instances.items() if i.id == oid), 0)
+        return self.seg_of.get(oid, 0)
 
     def _object_of_seg(self, seg: int) -> str | None:
         inst = self.instances.get(seg)
@@ -410,6 +408,17 @@ class HeuristicTeam(Team):
 
     def _type_index(self, t: str) -> int:
         return self.catalog.category_index(t) if t else -1
+
+
+def crop_window(cell: Cell, shape: tuple[int, int]) -> tuple[tuple[slice, slice], ...]:
+    """Slices of the grid and of a CROP x CROP crop centred on ``cell`` that overlap."""
+    out_grid, out_crop = [], []
+    for centre, size in zip(cell, shape, strict=True):
+        lo = centre - CROP // 2
+        start, stop = max(lo, 0), min(lo + CROP, size)
+        out_grid.append(slice(start, stop))
+        out_crop.append(slice(start - lo, stop - lo))
+    return tuple(out_grid), tuple(out_crop)
 
 
 def camera_pitch(extrinsics: np.ndarray) -> int:
