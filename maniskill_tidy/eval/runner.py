@@ -59,15 +59,19 @@ def run_dir(out: Path, cfg: RunConfig) -> Path:
 
 
 def code_version() -> str:
-    try:
-        here = Path(__file__).resolve().parent
-        rev = subprocess.run(
-            ["git", "-C", str(here), "describe", "--always", "--dirty"],
-            capture_output=True,
-            text=True,
-            check=True,
+    """The commit, with "-dirty" if the package's tracked files differ from it (result files
+    elsewhere in the checkout, such as eval/results, do not count)."""
+    package = Path(__file__).resolve().parents[1]
+
+    def git(*args: str) -> str:
+        return subprocess.run(
+            ["git", "-C", str(package), *args], capture_output=True, text=True, check=True
         ).stdout.strip()
-        return rev or "unknown"
+
+    try:
+        rev = git("rev-parse", "--short", "HEAD")
+        changed = git("status", "--porcelain", "--untracked-files=no", "--", str(package))
+        return (rev + "-dirty" if changed else rev) or "unknown"
     except (OSError, subprocess.CalledProcessError):
         from importlib.metadata import version
 

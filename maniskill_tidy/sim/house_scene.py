@@ -111,6 +111,13 @@ def rectilinear_strips(polygon: list[list[float]]) -> list[tuple[float, float, f
     ]
 
 
+def open_position(j) -> float:
+    """The joint position episodes start at: doors swung open, drawers pulled out."""
+    if j.type == "revolute":
+        return min(DOOR_OPEN, j.limits[1])
+    return DRAWER_OPEN * j.limits[1]
+
+
 class HouseScene:
     """Builds ``house`` into ``scene`` (a ManiSkillScene) once; episodes then only move objects."""
 
@@ -296,17 +303,11 @@ class HouseScene:
     def open_compartments(self) -> None:
         for fid, art in self.articulations.items():
             f = self.furniture[fid]
-            q = [self._open_q(j) for j in f.joints]
+            q = [open_position(j) for j in f.joints]
             art.set_qpos(np.array(q, dtype=np.float32))
             art.set_qvel(np.zeros(len(f.joints), dtype=np.float32))
             for joint, target in zip(art.get_active_joints(), q, strict=True):
                 joint.set_drive_target(target)
-
-    @staticmethod
-    def _open_q(j) -> float:
-        if j.type == "revolute":
-            return min(DOOR_OPEN, j.limits[1])
-        return DRAWER_OPEN * j.limits[1]
 
     def surface_offset(self, f: Furniture, link: str) -> np.ndarray:
         """World displacement of what a drawer carries, with the drawer open."""
@@ -315,7 +316,7 @@ class HouseScene:
         j = next(j for j in f.joints if j.name == link)
         if j.type != "prismatic":
             return np.zeros(3)
-        q = self._open_q(j)
+        q = open_position(j)
         ax, ay = j.axis[0], j.axis[1]
         c, s = math.cos(f.yaw), math.sin(f.yaw)
         return np.array([q * (c * ax - s * ay), q * (s * ax + c * ay), 0.0])
