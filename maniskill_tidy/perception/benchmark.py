@@ -1,0 +1,93 @@
+"""Map update cost per agent frame, next to the env step that produced the frame (same run).
+
+Agents wander with random navigation actions; each step's three 224x224 frames go through
+``SemanticMap.update`` and, for the design comparison in ``semantic_map.py``, through an open3d
+TSDF (``VoxelBlockGrid.integrate`` plus the point extraction a top-down read needs). Env step,
+map update and TSDF alternate frame by frame, so machine load hits all three alike.
+"""
+
+from __future__ import annotations
+
+import statistics
+import time
+
+import gymnasium as gym
+import numpy as np
+import open3d as o3d
+
+from maniskill_tidy.envs.benchmark import NAV_ONLY
+from maniskill_tidy.perception.semantic_map import MapConfig, TeamMaps
+
+
+class TSDFMap:
+    """The alternative the map design was measured against (not used by the project)."""
+
+    def __init__(self, config: MapConfig) -> None:
+        self.config = config
+        self.grid = o3d.t.geometry.VoxelBlockGrid(
+            attr_names=("tsdf", "weight", "color"),  # colour carries the label, as in the map
+            attr_dtypes=(o3d.core.float32, o3d.core.float32, o3d.core.float32),
+            attr_channels=((1), (1), (3)),
+            voxel_size=config.cell,
+            block_resolution=8,
+            block_count=20000,
+        )
+
+    def update(self, obs: dict) -> None:
+        depth = o3d.t.geometry.Image(np.ascontiguousarray(obs["depth"], dtype=np.float32))
+        k = o3d.core.Tensor(np.asarray(obs["intrinsics"], dtype=np.float64))
+        ext = o3d.core.Tensor(np.asarray(obs["extrinsics"], dtype=np.float64))
+        blocks = self.grid.compute_unique_block_coordinates(
+            depth, k, ext, 1.0, self.config.max_depth
+        )
+        seg = np.asarray(obs["segmentation"], dtype=np.float32)
+        label = o3d.t.geometry.Image(np.ascontiguousarray(np.repeat(seg[..., None], 3, axis=2)))
+        self.grid.integrate(blocks, depth, label, k, ext, 1.0, self.config.max_depth)
+
+    def read(self) -> np.ndarray:
+        return self.grid.extract_point_cloud(weight_threshold=1.0).point.positions.numpy()
+
+
+def bench_map(steps: int = 40, seed: int = 0) -> dict:
+    env = gym.make("HeteroTidy-v1", obs_mode="rgb+depth+segmentation", setting="I")
+    u = env.unwrapped
+    rng = np.random.default_rng(seed)
+    try:
+        obs, _ = env.reset(seed=seed, options={"episode": 0})
+        config = MapConfig()
+        maps = TeamMaps(u.house, u.instances, u.agent_names, config)
+        tsdf = {name: TSDFMap(config) for name in u.agent_names}
+        env_ms, map_ms, tsdf_ms = [], [], []
+        for _ in range(steps):
+            start = time.perf_counter()
+            obs, *_ = env.step({n: int(rng.choice(NAV_ONLY)) for n in u.agent_names})
+            env_ms.append((time.perf_counter() - start) * 1e3 / len(u.agent_names))
+            for name, m in maps.maps.items():
+                start = time.perf_counter()
+                m.update(obs[name])
+                m.top_down()
+                map_ms.append((time.perf_counter() - start) * 1e3)
+                start = time.perf_counter()
+                tsdf[name].update(obs[name])
+                tsdf[name].read()
+                tsdf_ms.append((time.perf_counter() - start) * 1e3)
+    finally:
+        env.close()
+    h, w = u.camera_size
+    return {
+        "frames": len(map_ms),
+        "size": f"{w}x{h}",
+        "env_ms": statistics.median(env_ms),
+        "map_ms": statistics.median(map_ms),
+        "tsdf_ms": statistics.median(tsdf_ms),
+        "map_per_env": statistics.median(map_ms) / statistics.median(env_ms),
+    }
+
+
+def report(r: dict) -> str:
+    return (
+        f"semantic map update per agent frame ({r['size']}, {r['frames']} frames, medians;\n"
+        "env step cost shared out per agent frame; map = update + top-down read)\n"
+        f"{'env ms':>7} {'map ms':>7} {'map/env':>8} {'TSDF ms':>8}\n"
+        f"{r['env_ms']:>7.2f} {r['map_ms']:>7.2f} {r['map_per_env']:>8.2f} {r['tsdf_ms']:>8.2f}"
+    )

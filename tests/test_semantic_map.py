@@ -1,0 +1,298 @@
+"""Semantic maps: against the house spec after a look-around, and their pieces on synthetic maps."""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import sapien
+from matplotlib.path import Path as PolygonPath
+
+import maniskill_tidy  # noqa: F401  (registers the env)
+from maniskill_tidy.envs.actions import Action
+from maniskill_tidy.perception.look_around import look_around
+from maniskill_tidy.perception.semantic_map import (
+    EXPLORED,
+    FIRST_CHANNEL,
+    FLOOR_LABEL,
+    OBSTACLE,
+    MapConfig,
+    MapFrame,
+    SemanticMap,
+    egocentric_crop,
+    find_frontiers,
+    ground_truth_obstacles,
+    open_links,
+    share_maps,
+)
+from maniskill_tidy.policies.channel import Channel
+from maniskill_tidy.tasks.metatask import apply_task
+
+TEAM = [[1, 0, 0], [1, 1, 1], [1, 0, 1]]  # low scout (0.22 m camera), manipulator, high scout
+CAMERAS = {"agent_0": "low", "agent_1": "high", "agent_2": "high"}
+EPISODES = (0, 4, 8, 12)  # test split of the shipped dataset: bathrooms to living rooms
+
+
+@pytest.fixture(scope="module")
+def env():
+    e = gym.make("HeteroTidy-v1", obs_mode="rgb+depth+segmentation", setting=TEAM, split="test")
+    yield e.unwrapped
+    e.close()
+
+
+def messy_house(u):
+    """The house spec with the episode's objects where the task put them."""
+    return apply_task(u.hs.house, u.episode.task)
+
+
+def room_cells(house, frame: MapFrame, x: float, y: float) -> np.ndarray:
+    room = house.room(house.room_at(x, y))
+    r, c = np.mgrid[0 : frame.shape[0], 0 : frame.shape[1]]
+    inside = PolygonPath(room.polygon).contains_points(frame.centres(r, c).reshape(-1, 2))
+    return inside.reshape(frame.shape)
+
+
+def looked_around(u, episode: int, agent: str) -> SemanticMap:
+    """The map, with the start position and the objects seen well (100+ pixels) on the way."""
+    obs, _ = u.reset(seed=0, options={"episode": episode})
+    state = u.agents[u.agent_names.index(agent)]
+    start = u.house.navgrid.center(*state.cell)
+    seen = set()
+
+    def note(frame, _map) -> None:
+        ids, counts = np.unique(frame["segmentation"], return_counts=True)
+        for sid, n in zip(ids, counts, strict=True):
+            inst = u.instances.get(int(sid))
+            if inst is not None and inst.kind == "object" and n >= 100:
+                seen.add(inst.id)
+
+    semantic = look_around(u, agent, obs, on_frame=note)
+    semantic.start = start
+    semantic.seen = {oid: u.hs.object_bottom(oid) for oid in seen}  # where they are now
+    return semantic
+
+
+@pytest.fixture(scope="module")
+def surveys(env):
+    """Every agent's map after a look-around from its start, in each episode of EPISODES."""
+    out = {}
+    for episode in EPISODES:
+        for agent in env.agent_names:
+            m = looked_around(env, episode, agent)
+            out[episode, agent] = (m, messy_house(env))
+    return out
+
+
+def obstacle_iou(m: SemanticMap, house) -> float:
+    """IoU with the spec's obstacles over the explored cells of the agent's start room."""
+    td = m.top_down()
+    region = room_cells(house, m.frame, *m.start) & (td[..., EXPLORED] > 0)
+    truth = ground_truth_obstacles(house, m.frame) & region
+    mapped = (td[..., OBSTACLE] > 0) & region
+    return (truth & mapped).sum() / max((truth | mapped).sum(), 1)
+
+
+@pytest.mark.parametrize("camera", ["low", "high"])
+def test_obstacle_iou_after_looking_around_a_room(surveys, camera):
+    ious = [
+        obstacle_iou(m, house)
+        for (_, agent), (m, house) in surveys.items()
+        if CAMERAS[agent] == camera
+    ]
+    assert np.mean(ious) >= 0.85, ious
+    assert min(ious) >= 0.7, ious
+
+
+def test_look_around_explores_most_of_the_start_room(surveys):
+    for (_, agent), (m, house) in surveys.items():
+        room = room_cells(house, m.frame, *m.start)
+        explored = (m.top_down()[..., EXPLORED] > 0) & room
+        assert explored.sum() / room.sum() > 0.4, agent
+
+
+@pytest.mark.parametrize("agent", ["agent_0", "agent_2"])
+def test_floor_lands_at_height_zero_for_low_and_high_cameras(env, agent):
+    env.reset(seed=0, options={"episode": 0})
+    obs = env.step({a: int(Action.LookDown) for a in env.agent_names})[0]
+    m = SemanticMap(env.house, env.instances)
+    frame = obs[agent]
+    label = m.labels[frame["segmentation"]]
+    points, labels, _ = m._backproject(frame["depth"], label, frame)
+    floor = points[labels == FLOOR_LABEL]
+    assert len(floor) > 1000
+    # a camera put at the wrong height or tilt would lift or sink the floor
+    assert abs(np.median(floor[:, 2])) < 0.01
+    assert np.percentile(np.abs(floor[:, 2]), 99) < 0.03
+
+
+def test_category_channels_put_objects_in_their_cells(surveys):
+    hits = misses = wrong = checked = 0
+    for m, house in surveys.values():
+        td = m.top_down()
+        for k, name in enumerate(m.categories):
+            cells = np.argwhere(td[..., FIRST_CHANNEL + k] > 0)
+            if len(cells) == 0:
+                continue
+            truth = np.zeros(m.frame.shape, dtype=bool)
+            for thing in [*house.furniture, *house.objects]:
+                if thing.type == name:
+                    truth |= footprint_cells(m.frame, *box_of(thing), pad=0.1)
+                    for box in open_links(thing) if thing in house.furniture else []:
+                        truth |= footprint_cells(m.frame, *box, pad=0.1)  # open doors, drawers
+            inside = truth[cells[:, 0], cells[:, 1]]
+            wrong += int((~inside).sum())
+            hits += int(inside.sum())
+        for o in house.objects:  # every object seen well is in its own cells
+            if o.id in m.seen:
+                k = m.categories.index(o.type)
+                own = footprint_cells(m.frame, m.seen[o.id][:2], *o.size[:2], o.yaw, pad=0.0)
+                misses += int(not td[..., FIRST_CHANNEL + k][own].any())
+                checked += 1
+    assert checked >= 10
+    assert hits > 1000
+    assert wrong / hits < 0.02
+    assert misses == 0
+
+
+def box_of(thing) -> tuple:
+    return thing.position, thing.size[0], thing.size[1], thing.yaw
+
+
+def footprint_cells(frame: MapFrame, centre, w: float, d: float, yaw: float, pad: float):
+    r, c = np.mgrid[0 : frame.shape[0], 0 : frame.shape[1]]
+    xy = frame.centres(r, c)
+    cos, sin = math.cos(yaw), math.sin(yaw)
+    px, py = xy[..., 0] - centre[0], xy[..., 1] - centre[1]
+    lx, ly = cos * px + sin * py, -sin * px + cos * py
+    half = frame.cell / 2 + pad
+    return (np.abs(lx) <= w / 2 + half) & (np.abs(ly) <= d / 2 + half)
+
+
+def object_in_view(u, obs, agent: str):
+    seg = obs[agent]["segmentation"]
+    ids, counts = np.unique(seg, return_counts=True)
+    for sid, n in sorted(zip(ids, counts, strict=True), key=lambda p: -p[1]):
+        inst = u.instances.get(int(sid))
+        if inst is not None and inst.kind == "object" and n > 150:
+            return int(sid), inst
+    return None, None
+
+
+def find_view_of_an_object(u, agent: str):
+    for episode in range(20):
+        obs, _ = u.reset(seed=0, options={"episode": episode})
+        sid, inst = object_in_view(u, obs, agent)
+        if sid is not None:
+            return obs, sid, inst
+    pytest.fail("no start view with an object in the first 20 test episodes")
+
+
+def test_an_object_that_moves_away_is_cleared_from_the_map(env):
+    agent = "agent_1"
+    obs, sid, inst = find_view_of_an_object(env, agent)
+    m = SemanticMap(env.house, env.instances)
+    m.update(obs[agent])
+    k = FIRST_CHANNEL + m.categories.index(inst.type)
+    o = env.house.object_by_id()[inst.id]
+    own = footprint_cells(m.frame, env.hs.object_bottom(inst.id)[:2], *o.size[:2], o.yaw, 0.05)
+    assert m.top_down()[..., k][own].sum() >= 3
+    # spirit the object away (below the floor, out of every view) and look again
+    env.hs.objects[inst.id].set_pose(sapien.Pose(p=[0.0, 0.0, -5.0]))
+    m.update(env.get_obs()[agent])
+    assert m.top_down()[..., k][own].sum() == 0
+
+
+def test_the_held_object_is_left_out(env):
+    agent = "agent_1"
+    obs, sid, inst = find_view_of_an_object(env, agent)
+    k = FIRST_CHANNEL + SemanticMap(env.house, env.instances).categories.index(inst.type)
+    seen, held = SemanticMap(env.house, env.instances), SemanticMap(env.house, env.instances)
+    seen.update(obs[agent])
+    held.update({**obs[agent], "held": np.array(sid)})
+    assert seen.top_down()[..., k].sum() > held.top_down()[..., k].sum()
+
+
+# ---------------------------------------------------------------------- synthetic maps
+FRAME = MapFrame((0.0, 0.0), (100, 100), 0.05)  # 5 m x 5 m
+
+
+@pytest.mark.parametrize("rotation", [0, 90, 180, 270])
+def test_crop_turns_with_the_agent(rotation):
+    td = np.zeros((100, 100, 3), dtype=np.uint8)
+    x, y = 2.5, 2.5  # a cell corner: the crop's centre, between its cells 9 and 10
+    yaw = math.radians(rotation)
+    fwd, right = np.array([math.cos(yaw), math.sin(yaw)]), np.array([math.sin(yaw), -math.cos(yaw)])
+    ahead = np.array([x, y]) + 1.125 * fwd + 0.125 * right  # 4.5 crop cells up, 0.5 right
+    left = np.array([x, y]) + 0.125 * fwd - 0.875 * right  # 0.5 up, 3.5 left
+    for point, ch in ((ahead, 0), (left, 1)):
+        r, c = FRAME.cells_of(point[None])
+        td[r[0], c[0], ch] = 1
+    crop = egocentric_crop(td, FRAME, (x, y, rotation), size=20, cell=0.25)
+    assert crop.shape == (20, 20, 3)
+    assert np.argwhere(crop[..., 0]).tolist() == [[5, 10]]  # row 0 is the far end ahead
+    assert np.argwhere(crop[..., 1]).tolist() == [[9, 6]]  # column 0 the far left
+
+
+def test_crop_cells_outside_the_map_are_zero():
+    td = np.ones((100, 100, 3), dtype=np.uint8)
+    # an agent 0.1 m from the map's west edge, facing west: ahead of it is off the map
+    crop = egocentric_crop(td, FRAME, (0.1, 2.5, 180), size=20, cell=0.25)
+    assert crop[10:].all()  # behind it (the lower half of the crop) lies on the map
+    assert not crop[:9].any()  # more than 0.25 m ahead does not
+
+
+def test_frontiers_lie_where_explored_free_space_meets_the_unknown():
+    td = np.zeros((100, 100, 2 + 1), dtype=np.uint8)
+    td[20:60, 20:60, EXPLORED] = 1  # a 2 m x 2 m explored room...
+    td[20:60, 20, OBSTACLE] = td[20:60, 59, OBSTACLE] = td[20, 20:60, OBSTACLE] = 1
+    td[59, 20:40, OBSTACLE] = 1  # ...walled but for the north wall's east half
+    frontiers = find_frontiers(td, FRAME, min_cells=5)
+    assert len(frontiers) == 1
+    f = frontiers[0]
+    assert f.cells[:, 0].min() >= 57  # along the north edge
+    assert 40 <= f.cells[:, 1].mean() <= 60
+    x, y = f.centroid
+    assert 2.0 <= x <= 3.0 and 2.85 <= y <= 3.0
+    td[59, 20:60, OBSTACLE] = 1  # close it: nothing left to explore
+    assert find_frontiers(td, FRAME) == []
+
+
+def test_sharing_maps_counts_every_value_and_merges(env):
+    obs, _ = env.reset(seed=0, options={"episode": 0})
+    maps = {a: SemanticMap(env.house, env.instances) for a in ("agent_0", "agent_1")}
+    for a, m in maps.items():
+        m.update(obs[a])
+    channel = Channel(["agent_0", "agent_1", "agent_2"])
+    merged = share_maps(maps, channel)
+    size = maps["agent_0"].top_down().size
+    assert channel.total == 2 * size  # each of two maps to one other agent
+    for m in maps.values():
+        assert (merged >= m.top_down()).all()
+    explored = [m.top_down()[..., EXPLORED] > 0 for m in maps.values()]
+    assert ((merged[..., EXPLORED] > 0) == (explored[0] | explored[1])).all()
+
+
+def test_planner_grid_pools_map_cells_into_planner_cells(env):
+    env.reset(seed=0, options={"episode": 0})
+    m = SemanticMap(env.house, env.instances)
+    m._top_down[7, 12, OBSTACLE] = 1  # map cell (7, 12) lies in planner cell (1, 2)
+    grid = m.planner_grid()
+    assert grid.shape[:2] == tuple(env.house.navgrid.shape)
+    assert np.argwhere(grid[..., OBSTACLE]).tolist() == [[1, 2]]
+
+
+def test_bad_input_is_named(env):
+    obs, _ = env.reset(seed=0, options={"episode": 0})
+    m = SemanticMap(env.house, env.instances)
+    frame = dict(obs["agent_0"])
+    del frame["depth"]
+    with pytest.raises(KeyError, match="depth"):
+        m.update(frame)
+    with pytest.raises(ValueError, match="another house"):
+        m.update({**obs["agent_0"], "segmentation": obs["agent_0"]["segmentation"] + 10_000})
+    with pytest.raises(ValueError, match="divide"):
+        SemanticMap(env.house, env.instances, MapConfig(cell=0.07))
+    with pytest.raises(ValueError, match="reachable"):
+        look_around(env, "agent_0", obs, horizons=(45,))
