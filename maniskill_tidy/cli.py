@@ -200,6 +200,26 @@ def _run_episode(args: argparse.Namespace) -> int:
     return 0
 
 
+def _show_map(args: argparse.Namespace) -> int:
+    from maniskill_tidy.perception.map_figure import show_map
+
+    episode = int(args.episode) if args.episode.isdigit() else args.episode
+    r = show_map(
+        Path(args.out),
+        args.setting,
+        args.dataset,
+        args.split,
+        episode,
+        args.agent,
+        tuple(args.horizons) if args.horizons else None,
+    )
+    print(
+        f"{r['title']}: {r['frames']} frames, obstacle IoU {r['iou']:.3f} over explored cells, "
+        f"{r['frontiers']} frontiers -> {r['out']}"
+    )
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="maniskill-tidy", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -244,6 +264,20 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--seed", type=int, default=0)
     e.add_argument("--out", default="out/episode")
     e.set_defaults(func=_run_episode)
+
+    sm = sub.add_parser(
+        "show-map", help="draw an agent's semantic map after a scripted look-around as a PNG"
+    )
+    sm.add_argument("--setting", default="I")
+    sm.add_argument("--dataset", help="dataset directory (default: the env's shipped dataset)")
+    sm.add_argument("--split", default="test")
+    sm.add_argument("--episode", default="0", help="index or id in the split")
+    sm.add_argument("--agent", default="agent_0")
+    sm.add_argument(
+        "--horizons", type=int, nargs="+", help="camera tilts to turn around at (default 0 30)"
+    )
+    sm.add_argument("--out", default="map.png")
+    sm.set_defaults(func=_show_map)
 
     ev = sub.add_parser("eval", help="evaluate a team on a split (resumable, JSONL + summary)")
     ev.add_argument("--policy", required=True, help="a team name (see `maniskill-tidy policies`)")

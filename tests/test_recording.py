@@ -31,7 +31,9 @@ def test_recording_holds_images_poses_messages_and_metrics(tmp_path):
     printed = subprocess.run(
         [_rerun(), "rrd", "print", str(files[0])], capture_output=True, text=True
     ).stdout
-    paths = set(re.findall(r"(/(?:world|agents|comm|metrics|episode)[A-Za-z0-9_/]*)", printed))
+    paths = set(
+        re.findall(r"(/(?:world|agents|comm|metrics|episode|maps)[A-Za-z0-9_/]*)", printed)
+    )
     expected = {
         "/world/house/walls",
         "/world/house/furniture",
@@ -43,6 +45,9 @@ def test_recording_holds_images_poses_messages_and_metrics(tmp_path):
         "/metrics/reasonable",
         "/metrics/picked",
         "/episode/result",
+        "/maps",  # the map class legend
+        "/maps/team",
+        "/world/maps",
     }
     for a in ("agent_0", "agent_1", "agent_2"):
         expected |= {
@@ -53,6 +58,8 @@ def test_recording_holds_images_poses_messages_and_metrics(tmp_path):
             f"/world/cameras/{a}/segmentation",
             f"/agents/{a}/held",
             f"/agents/{a}/action",
+            f"/maps/{a}",
+            f"/world/maps/{a}",
         }
     assert expected <= paths, sorted(expected - paths)
     assert record.length > 0

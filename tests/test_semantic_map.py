@@ -296,3 +296,16 @@ def test_bad_input_is_named(env):
         SemanticMap(env.house, env.instances, MapConfig(cell=0.07))
     with pytest.raises(ValueError, match="reachable"):
         look_around(env, "agent_0", obs, horizons=(45,))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("camera", ["low", "high"])
+def test_obstacle_iou_over_twenty_test_episodes(env, camera):
+    ious = [
+        obstacle_iou(looked_around(env, episode, agent), messy_house(env))
+        for episode in range(20)
+        for agent in env.agent_names
+        if CAMERAS[agent] == camera
+    ]
+    assert np.mean(ious) >= 0.85, ious
+    assert np.percentile(ious, 10) >= 0.75, ious

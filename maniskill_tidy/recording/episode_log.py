@@ -11,7 +11,11 @@ Entity paths:
 - ``agents/<name>/{action,failed,held,subtask}``: text logs per step;
 - ``comm/messages`` (text), ``comm/matrix`` (values sent this step, sender x receiver),
   ``comm/groups`` (a graph: agents and who talked to whom this step), ``comm/values`` (scalar);
-- ``metrics/{reasonable,picked,comm_per_agent_step}``: scalars over time.
+- ``metrics/{reasonable,picked,comm_per_agent_step}``: scalars over time;
+- with images (depth and segmentation) in the observations, each agent's semantic map
+  (``perception/semantic_map.py``): ``maps/<name>`` and the merged ``maps/team`` as class
+  images (north up; hover for the category), and the fused voxels as points in the 3D view,
+  ``world/maps/<name>`` (floor left out), every ``POINTS_EVERY`` steps and at the end.
 
 The file is written to a temporary name and renamed when the episode ends, so a recording on
 disk is always complete.
@@ -31,6 +35,7 @@ from maniskill_tidy.envs.actions import Action, Targeted
 from maniskill_tidy.sim.appearance import hashed_colour
 
 APP_ID = "maniskill_tidy"
+POINTS_EVERY = 25  # steps between logs of the fused point clouds (they are large)
 MISPLACED, TIDIED, OTHER = (230, 40, 40), (40, 200, 70), (150, 150, 150)
 
 
@@ -38,8 +43,9 @@ def recording_path(directory: Path, episode_id: str) -> Path:
     return Path(directory) / (episode_id.replace("/", "__") + ".rrd")
 
 
-def layout(agents: list[str]) -> rrb.Blueprint:
-    """The viewer's opening layout: house in 3D, each agent's camera, communication, metrics."""
+def layout(agents: list[str], maps: bool = False) -> rrb.Blueprint:
+    """The viewer's opening layout: house in 3D, each agent's camera (and map), communication,
+    metrics."""
     cameras = [
         rrb.Spatial2DView(
             origin=f"world/cameras/{a}",
@@ -48,13 +54,17 @@ def layout(agents: list[str]) -> rrb.Blueprint:
         )
         for a in agents
     ]
+    left = [rrb.Spatial3DView(origin="world", name="house"), rrb.Horizontal(*cameras)]
+    if maps:
+        left.append(
+            rrb.Horizontal(
+                *[rrb.Spatial2DView(origin=f"maps/{a}", name=f"{a} map") for a in agents],
+                rrb.Spatial2DView(origin="maps/team", name="team map (merged)"),
+            )
+        )
     return rrb.Blueprint(
         rrb.Horizontal(
-            rrb.Vertical(
-                rrb.Spatial3DView(origin="world", name="house"),
-                rrb.Horizontal(*cameras),
-                row_shares=[3, 2],
-            ),
+            rrb.Vertical(*left, row_shares=[3, 2, 2][: len(left)]),
             rrb.Vertical(
                 rrb.GraphView(origin="comm/groups", name="communication groups"),
                 rrb.TensorView(origin="comm/matrix", name="values sent (sender x receiver)"),
@@ -83,10 +93,19 @@ class EpisodeRecorder:
         self.tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
         self.rec = rr.RecordingStream(APP_ID, recording_id=env.episode.id)
         self.rec.save(str(self.tmp))
-        self.rec.send_blueprint(layout([a.name for a in env.agents]))
+        obs = env.get_obs()
+        first = next(iter(obs.values()), {})
+        self.maps = None
+        if "depth" in first and "segmentation" in first:
+            from maniskill_tidy.perception.semantic_map import TeamMaps
+
+            self.maps = TeamMaps(env.house, env.instances, [a.name for a in env.agents])
+        self.rec.send_blueprint(layout([a.name for a in env.agents], self.maps is not None))
         self.rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         self._log_house()
         self._log_legend()
+        if self.maps is not None:
+            self._log_map_legend()
         self.rec.log(
             "episode",
             rr.TextDocument(
@@ -95,7 +114,7 @@ class EpisodeRecorder:
             ),
             static=True,
         )
-        self.log_step(0, env.get_obs(), {}, env.get_info(), channel, {})
+        self.log_step(0, obs, {}, env.get_info(), channel, {})
 
     def log_step(self, t: int, obs: dict, actions: dict, info: dict, channel, labels) -> None:
         rec, env = self.rec, self.env
@@ -148,6 +167,9 @@ class EpisodeRecorder:
                 subtask, subgoal = labels[a.name]
                 rec.log(f"agents/{a.name}/subtask", rr.TextLog(f"{subtask} {subgoal}"))
         self._log_comm(channel)
+        if self.maps is not None:
+            self.maps.update(obs)
+            self._log_maps(points=t % POINTS_EVERY == 0)
         n = max(len(env.agents), 1)
         rec.log("metrics/reasonable", rr.Scalars(float(info.get("n_reasonable", 0))))
         rec.log("metrics/picked", rr.Scalars(float(len(info.get("picked", [])))))
@@ -155,6 +177,8 @@ class EpisodeRecorder:
 
     def finish(self, record) -> Path:
         self.rec.set_time("step", sequence=record.length)
+        if self.maps is not None:
+            self._log_maps(points=True)
         self.rec.log("episode/result", rr.TextLog(str(record.to_dict())))
         self.rec.flush()
         self.rec.disconnect()
@@ -201,6 +225,41 @@ class EpisodeRecorder:
                 )
             )
         self.rec.log("world/cameras", rr.AnnotationContext(infos), static=True)
+
+    def _log_map_legend(self) -> None:
+        from maniskill_tidy.perception.map_figure import class_legend
+
+        categories = next(iter(self.maps.maps.values())).categories
+        context = rr.AnnotationContext(
+            [
+                rr.AnnotationInfo(id=i, label=label, color=c)
+                for i, label, c in class_legend(categories)
+            ]
+        )
+        self.rec.log("maps", context, static=True)
+        self.rec.log("world/maps", context, static=True)
+
+    def _log_maps(self, points: bool) -> None:
+        """Class images of every agent's map and the team's; the fused voxels if ``points``
+        (voxel labels double as class ids: 2 wall, 3 + k category k; floor voxels left out)."""
+        from maniskill_tidy.perception.map_figure import map_classes
+        from maniskill_tidy.perception.semantic_map import WALL_LABEL
+
+        rec = self.rec
+        for name, m in self.maps.maps.items():
+            rec.log(
+                f"maps/{name}", rr.SegmentationImage(map_classes(m.top_down(), m.categories)[::-1])
+            )
+            if points:
+                xyz, labels = m.points()
+                keep = labels >= WALL_LABEL
+                rec.log(
+                    f"world/maps/{name}",
+                    rr.Points3D(xyz[keep], class_ids=labels[keep], radii=m.config.cell / 2),
+                )
+        rec.log(
+            "maps/team", rr.SegmentationImage(map_classes(self.maps.merged(), m.categories)[::-1])
+        )
 
     def _log_objects(self, info: dict) -> None:
         env = self.env
