@@ -31,9 +31,7 @@ def test_recording_holds_images_poses_messages_and_metrics(tmp_path):
     printed = subprocess.run(
         [_rerun(), "rrd", "print", str(files[0])], capture_output=True, text=True
     ).stdout
-    paths = set(
-        re.findall(r"(/(?:world|agents|comm|metrics|episode|maps)[A-Za-z0-9_/]*)", printed)
-    )
+    paths = set(re.findall(r"(/(?:world|agents|comm|metrics|episode|maps)[A-Za-z0-9_/]*)", printed))
     expected = {
         "/world/house/walls",
         "/world/house/furniture",

@@ -218,22 +218,24 @@ class SemanticMap:
 
     def _fuse(self, points: np.ndarray, labels: np.ndarray) -> np.ndarray:
         """Write the points' labels into their voxels; returns the flat column indices hit."""
-        rows, cols = self.frame.cells_of(points[:, :2])
-        inside = (rows >= 0) & (rows < self.frame.shape[0]) & (cols >= 0)
-        inside &= cols < self.frame.shape[1]
-        rows, cols, points, labels = rows[inside], cols[inside], points[inside], labels[inside]
-        self.explored[rows, cols] = True
-        layer = np.floor(points[:, 2] / self.config.cell).astype(np.int64)
-        layer[(layer == -1) & (labels == FLOOR_LABEL)] = 0  # the floor's rendered surface
-        keep = (layer >= 0) & (layer < self.layers)
-        flat = np.ravel_multi_index((rows[keep], cols[keep], layer[keep]), self.voxels.shape)
-        labels = labels[keep]
+        rows, cols = self.frame.shape
+        origin = np.array([*self.frame.origin, 0.0], dtype=np.float32)
+        ijk = np.floor((points.astype(np.float32) - origin) / np.float32(self.config.cell))
+        ijk = ijk.astype(np.int32)  # (x, y, z) cells
+        ijk[(ijk[:, 2] == -1) & (labels == FLOOR_LABEL), 2] = 0  # the floor's rendered surface
+        x, y, z = ijk[:, 0], ijk[:, 1], ijk[:, 2]
+        on_map = (x >= 0) & (x < cols) & (y >= 0) & (y < rows)
+        column = y[on_map] * cols + x[on_map]
+        self.explored.reshape(-1)[column] = True
+        stored = (z[on_map] >= 0) & (z[on_map] < self.layers)
+        flat = column[stored].astype(np.int64) * self.layers + z[on_map][stored]
+        labels = labels[on_map][stored]
         self.voxels.reshape(-1)[flat] = labels
         moving = flat[self._movable[labels]]
         if len(moving):
             self._movable_voxels = np.union1d(self._movable_voxels, moving)
-        hit = np.zeros(self.voxels.shape[0] * self.voxels.shape[1], dtype=bool)
-        hit[flat // self.layers] = True
+        hit = np.zeros(rows * cols, dtype=bool)
+        hit[column] = True
         return np.flatnonzero(hit)
 
     def _mark_visible_floor(self, depth, intrinsics, extrinsics, pose) -> None:
@@ -244,12 +246,7 @@ class SemanticMap:
         k = np.asarray(intrinsics, dtype=np.float64)
         camera = -ext[:3, :3].T @ ext[:3, 3]
         reach = self.config.max_depth
-        r0, c0 = (int(v[0]) for v in self.frame.cells_of(camera[None, :2] - reach))
-        span = int(2 * reach / self.config.cell) + 2
-        r, c = np.mgrid[max(r0, 0) : max(r0 + span, 0), max(c0, 0) : max(c0 + span, 0)]
-        r, c = r.ravel(), c.ravel()
-        keep = (r < self.frame.shape[0]) & (c < self.frame.shape[1])
-        r, c = r[keep], c[keep]
+        r, c = self._view_window(camera, ext, k, depth.shape, reach)
         xy = self.frame.centres(r, c)
         cam = np.column_stack([xy, np.zeros(len(xy))]) @ ext[:3, :3].T + ext[:3, 3]
         u, v, ok = _pixels(cam, k, depth.shape)
@@ -262,10 +259,39 @@ class SemanticMap:
         floor = (d > 0) & (height < FLOOR_HIT)
         idx = np.flatnonzero(ok)[floor]
         self.explored[r[idx], c[idx]] = True
-        if pose is not None:
-            near = np.hypot(xy[:, 0] - float(pose[0]), xy[:, 1] - float(pose[1]))
-            near = near <= ROBOT_FOOTPRINT
-            self.explored[r[near], c[near]] = True
+        if pose is not None:  # the agent stands there: known, though never in view
+            x, y, pad = float(pose[0]), float(pose[1]), ROBOT_FOOTPRINT + self.config.cell
+            rows, cols = self.frame.cells_of(np.array([[x - pad, y - pad], [x + pad, y + pad]]))
+            rows = np.clip(rows, 0, self.frame.shape[0] - 1)
+            cols = np.clip(cols, 0, self.frame.shape[1] - 1)
+            rr, cc = np.mgrid[rows[0] : rows[1] + 1, cols[0] : cols[1] + 1]
+            xy = self.frame.centres(rr, cc)
+            near = np.hypot(xy[..., 0] - x, xy[..., 1] - y) <= ROBOT_FOOTPRINT
+            self.explored[rr[near], cc[near]] = True
+
+    def _view_window(self, camera, ext, k, shape, reach) -> tuple[np.ndarray, np.ndarray]:
+        """Map cells (rows, cols) of the box around what the camera sees within ``reach``:
+        the camera and the horizontal rays through the image's corners and centre."""
+        h, w = shape
+        pixels = np.array([[0, 0], [w, 0], [0, h], [w, h], [w / 2, h / 2]], dtype=np.float64)
+        rays = (
+            np.column_stack(
+                [(pixels[:, 0] - k[0, 2]) / k[0, 0], (pixels[:, 1] - k[1, 2]) / k[1, 1], np.ones(5)]
+            )
+            @ ext[:3, :3]
+        )  # camera rays in world coordinates (rows of R^T applied)
+        flat = rays[:, :2] / np.maximum(np.linalg.norm(rays[:, :2], axis=1, keepdims=True), 1e-9)
+        ends = np.vstack([camera[None, :2], camera[:2] + reach * flat])
+        lo = ends.min(axis=0) - 2 * self.config.cell
+        hi = ends.max(axis=0) + 2 * self.config.cell
+        (r0, r1), (c0, c1) = (
+            np.clip(self.frame.cells_of(np.array([lo, hi]))[i], 0, n)
+            for i, n in enumerate(self.frame.shape)
+        )
+        r, c = np.mgrid[r0 : r1 + 1, c0 : c1 + 1]
+        r, c = r.ravel(), c.ravel()
+        keep = (r < self.frame.shape[0]) & (c < self.frame.shape[1])
+        return r[keep], c[keep]
 
     def _clear_seen_through(self, depth, intrinsics, extrinsics) -> np.ndarray:
         """Clear stored object voxels the camera now sees past (the object has moved); returns
