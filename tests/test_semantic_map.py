@@ -309,3 +309,14 @@ def test_obstacle_iou_over_twenty_test_episodes(env, camera):
     ]
     assert np.mean(ious) >= 0.85, ious
     assert np.percentile(ious, 10) >= 0.75, ious
+
+
+def test_show_map_draws_an_agents_map(tmp_path, capsys):
+    from maniskill_tidy.cli import main
+
+    out = tmp_path / "map.png"
+    assert main(["show-map", "--episode", "4", "--agent", "agent_2", "--out", str(out)]) == 0
+    assert out.stat().st_size > 20_000
+    printed = capsys.readouterr().out
+    iou = float(printed.split("obstacle IoU ")[1].split()[0])
+    assert iou > 0.8, printed
