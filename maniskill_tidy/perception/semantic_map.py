@@ -7,8 +7,14 @@ every voxel; the top-down map of shape (rows, cols, K + 2) is read off that grid
 
 - channel 0, obstacles: columns holding wall, furniture or object voxels between
   ``OBSTACLE_BAND`` heights (what blocks a robot; the floor does not);
-- channel 1, explored: columns any back-projected point fell into (floor, furniture, walls);
+- channel 1, explored: columns any back-projected point fell into, and cells whose floor a
+  pixel sees (a z-buffer test: floor seen at a grazing angle counts as a whole, floor hidden
+  behind furniture does not), and the cells the agent stands on;
 - channel 2 + k, category k of ``Catalog.categories`` (every object and furniture type).
+
+Surfaces seen at a grazing angle get one pixel row every 10-30 cm; points are filled in
+between vertically adjacent pixels of one instance (:func:`densify`) so that a table top
+seen from across the room is an obstacle and not floor-with-stripes.
 
 Why a labelled voxel grid and not a TSDF: the renderer's depth has no noise to average away,
 so a TSDF's weighted averaging buys no accuracy here, blurs labels at object boundaries, and
