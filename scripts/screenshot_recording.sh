@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # A PNG of the rerun viewer showing a recording (for the README), on a virtual screen.
-# Needs Debian's xvfb, x11-apps and imagemagick (not part of setup.sh: only docs need them).
+# Needs Debian's xvfb, x11-apps, xdotool and imagemagick (not in setup.sh: only docs need them).
 # Usage: scripts/screenshot_recording.sh FILE.rrd OUT.png [SECONDS]
 set -euo pipefail
 rrd=$1; out=$2; wait=${3:-25}
@@ -14,6 +14,8 @@ sleep 2
 DISPLAY=$display WGPU_BACKEND=vulkan timeout $((wait + 20)) "$rerun_bin" "$rrd" >/dev/null 2>&1 &
 viewer=$!
 sleep "$wait"
+DISPLAY=$display xdotool mousemove 1599 999  # the pointer off the views: no hover tooltips
+sleep 1
 DISPLAY=$display xwd -root -silent | convert xwd:- "$out"
 kill $viewer 2>/dev/null || true
 echo "wrote $out"
