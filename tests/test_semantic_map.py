@@ -320,3 +320,18 @@ def test_show_map_draws_an_agents_map(tmp_path, capsys):
     printed = capsys.readouterr().out
     iou = float(printed.split("obstacle IoU ")[1].split()[0])
     assert iou > 0.8, printed
+
+
+def test_frontier_targets_are_free_planner_cells_near_their_frontiers(surveys):
+    checked = 0
+    for m, house in surveys.values():
+        nav = house.navgrid
+        targets = m.frontier_targets(nav)
+        frontiers = m.frontiers()
+        assert len(targets) <= len(frontiers)
+        for row, col in targets:
+            assert nav.free(row, col)
+            x, y = nav.center(row, col)
+            assert min(math.dist((x, y), f.centroid) for f in frontiers) <= 1.0
+            checked += 1
+    assert checked >= 10

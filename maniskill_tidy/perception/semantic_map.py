@@ -359,6 +359,30 @@ class SemanticMap:
     def frontiers(self, min_cells: int = 5) -> list[Frontier]:
         return find_frontiers(self.top_down(), self.frame, min_cells)
 
+    def frontier_targets(self, navgrid, min_cells: int = 5) -> list[tuple[int, int]]:
+        """For an exploration policy: per frontier (largest first), the free planner cell
+        nearest its centroid that the map does not show blocked; frontiers without one within
+        a metre are skipped."""
+        from maniskill_tidy.houses.navgrid import grid_array
+
+        free = grid_array(navgrid) & ~self.planner_grid()[..., OBSTACLE].astype(bool)
+        cells = np.argwhere(free)
+        if len(cells) == 0:
+            return []
+        centres = np.column_stack(
+            [
+                navgrid.origin[0] + (cells[:, 1] + 0.5) * navgrid.cell,
+                navgrid.origin[1] + (cells[:, 0] + 0.5) * navgrid.cell,
+            ]
+        )
+        out = []
+        for f in self.frontiers(min_cells):
+            d = np.hypot(centres[:, 0] - f.centroid[0], centres[:, 1] - f.centroid[1])
+            i = int(np.argmin(d))
+            if d[i] <= 1.0 and tuple(cells[i]) not in out:
+                out.append((int(cells[i, 0]), int(cells[i, 1])))
+        return out
+
 
 def densify(
     points: np.ndarray,
