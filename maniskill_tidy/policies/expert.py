@@ -68,6 +68,7 @@ class ExpertTeam(Team):
         self.seen: set[str] = set()
         self._labels: dict[str, tuple[SubTask, SubGoal]] = {}
         self._surface_queue: dict[str, list[tuple[str, list[Viewpoint]]]] = {}
+        self._trapped: set[Cell] = set()  # scouts that could not step aside last step
 
     # ------------------------------------------------------------------ acting
     def act(self, obs: dict[str, dict], info: dict) -> dict[str, Any]:
@@ -75,6 +76,7 @@ class ExpertTeam(Team):
         cells of a manipulator's path steps aside (this is what breaks corridor deadlocks)."""
         actions = {}
         self._labels = {}
+        self._trapped_before, self._trapped = self._trapped, set()
         self._reserved: set[Cell] = set()
         self._entering: set[Cell] = set()  # cells higher-ranked agents move into this step
         ranked = sorted(self.env.agents, key=lambda a: (not a.manipulator, a.name))
@@ -110,11 +112,13 @@ class ExpertTeam(Team):
         occupied = {a.cell for a in self.env.agents if a is not agent} | self._entering
         dist = self.planner.distances(agent.cell, occupied)
         free = [c for c in dist if c not in self._reserved]
-        if not free:
-            return wait_action(agent)
-        goal = min(free, key=lambda c: (dist[c], c))
-        path = self.planner.path(agent.cell, goal, occupied)
+        path = (
+            self.planner.path(agent.cell, min(free, key=lambda c: (dist[c], c)), occupied)
+            if free
+            else None
+        )
         if not path or len(path) < 2:
+            self._trapped.add(agent.cell)  # hemmed in: next step the manipulators go round it
             return wait_action(agent)
         action = move_towards(agent, path[1])
         if action in (Action.MoveAhead, Action.MoveLeft, Action.MoveRight):
@@ -132,7 +136,8 @@ class ExpertTeam(Team):
             if job is None:
                 job = self._allocate(agent)
             self.jobs[agent.name] = job
-            others = (self._yielding_to | self._reserved | self._entering) - {agent.cell}
+            others = self._yielding_to | self._reserved | self._entering | self._trapped_before
+            others -= {agent.cell}
             stopped = {a.cell for a in self.env.agents if a.stopped}
             if job.kind == "park" and agent.cell == job.leg.candidates[0].cell:
                 self._label(agent, job)
