@@ -48,7 +48,9 @@ def bench_generation(houses: int, workers: int) -> dict:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--houses", type=int, default=120)
-    parser.add_argument("--only", choices=("generation", "env", "map", "eval"), default=None)
+    parser.add_argument(
+        "--only", choices=("generation", "env", "map", "map-accuracy", "eval"), default=None
+    )
     parser.add_argument("--eval-dataset", help="dataset for the eval row (default: shipped one)")
     args = parser.parse_args(argv)
     if args.only in (None, "eval"):
@@ -57,6 +59,13 @@ def main(argv: list[str] | None = None) -> int:
         print(report(bench_eval(dataset=args.eval_dataset)))
         print()
         if args.only == "eval":
+            return 0
+    if args.only in (None, "map-accuracy"):
+        from maniskill_tidy.perception.accuracy import bench_map_accuracy, report
+
+        print(report(bench_map_accuracy()))
+        print()
+        if args.only == "map-accuracy":
             return 0
     if args.only in (None, "map"):
         from maniskill_tidy.perception.benchmark import bench_map, report

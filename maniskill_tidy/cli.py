@@ -220,6 +220,14 @@ def _show_map(args: argparse.Namespace) -> int:
     return 0
 
 
+def _episode_options(p: argparse.ArgumentParser) -> None:
+    """Which episode a command plays: --setting, --dataset, --split, --episode."""
+    p.add_argument("--setting", default="I")
+    p.add_argument("--dataset", help="dataset directory (default: the env's shipped dataset)")
+    p.add_argument("--split", default="test")
+    p.add_argument("--episode", default="0", help="index or id in the split")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="maniskill-tidy", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -256,10 +264,7 @@ def build_parser() -> argparse.ArgumentParser:
     e = sub.add_parser(
         "run-episode", help="play one episode with an exploring policy; save camera and house PNGs"
     )
-    e.add_argument("--setting", default="I")
-    e.add_argument("--dataset", help="dataset directory (default: the env's shipped dataset)")
-    e.add_argument("--split", default="test")
-    e.add_argument("--episode", default="0", help="index or id in the split")
+    _episode_options(e)
     e.add_argument("--steps", type=int, default=30)
     e.add_argument("--seed", type=int, default=0)
     e.add_argument("--out", default="out/episode")
@@ -268,10 +273,7 @@ def build_parser() -> argparse.ArgumentParser:
     sm = sub.add_parser(
         "show-map", help="draw an agent's semantic map after a scripted look-around as a PNG"
     )
-    sm.add_argument("--setting", default="I")
-    sm.add_argument("--dataset", help="dataset directory (default: the env's shipped dataset)")
-    sm.add_argument("--split", default="test")
-    sm.add_argument("--episode", default="0", help="index or id in the split")
+    _episode_options(sm)
     sm.add_argument("--agent", default="agent_0")
     sm.add_argument(
         "--horizons", type=int, nargs="+", help="camera tilts to turn around at (default 0 30)"

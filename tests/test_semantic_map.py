@@ -8,10 +8,17 @@ import gymnasium as gym
 import numpy as np
 import pytest
 import sapien
-from matplotlib.path import Path as PolygonPath
 
 import maniskill_tidy  # noqa: F401  (registers the env)
 from maniskill_tidy.envs.actions import Action
+from maniskill_tidy.perception.accuracy import (
+    CAMERAS,
+    SURVEY_TEAM,
+    messy_house,
+    room_cells,
+    start_room_iou,
+    survey_iou,
+)
 from maniskill_tidy.perception.look_around import look_around
 from maniskill_tidy.perception.semantic_map import (
     EXPLORED,
@@ -21,17 +28,15 @@ from maniskill_tidy.perception.semantic_map import (
     MapConfig,
     MapFrame,
     SemanticMap,
+    box_cells,
     egocentric_crop,
     find_frontiers,
-    ground_truth_obstacles,
     open_links,
     share_maps,
 )
 from maniskill_tidy.policies.channel import Channel
-from maniskill_tidy.tasks.metatask import apply_task
 
-TEAM = [[1, 0, 0], [1, 1, 1], [1, 0, 1]]  # low scout (0.22 m camera), manipulator, high scout
-CAMERAS = {"agent_0": "low", "agent_1": "high", "agent_2": "high"}
+TEAM = SURVEY_TEAM
 EPISODES = (0, 4, 8, 12)  # test split of the shipped dataset: bathrooms to living rooms
 
 
@@ -40,18 +45,6 @@ def env():
     e = gym.make("HeteroTidy-v1", obs_mode="rgb+depth+segmentation", setting=TEAM, split="test")
     yield e.unwrapped
     e.close()
-
-
-def messy_house(u):
-    """The house spec with the episode's objects where the task put them."""
-    return apply_task(u.hs.house, u.episode.task)
-
-
-def room_cells(house, frame: MapFrame, x: float, y: float) -> np.ndarray:
-    room = house.room(house.room_at(x, y))
-    r, c = np.mgrid[0 : frame.shape[0], 0 : frame.shape[1]]
-    inside = PolygonPath(room.polygon).contains_points(frame.centres(r, c).reshape(-1, 2))
-    return inside.reshape(frame.shape)
 
 
 def looked_around(u, episode: int, agent: str) -> SemanticMap:
@@ -85,19 +78,10 @@ def surveys(env):
     return out
 
 
-def obstacle_iou(m: SemanticMap, house) -> float:
-    """IoU with the spec's obstacles over the explored cells of the agent's start room."""
-    td = m.top_down()
-    region = room_cells(house, m.frame, *m.start) & (td[..., EXPLORED] > 0)
-    truth = ground_truth_obstacles(house, m.frame) & region
-    mapped = (td[..., OBSTACLE] > 0) & region
-    return (truth & mapped).sum() / max((truth | mapped).sum(), 1)
-
-
 @pytest.mark.parametrize("camera", ["low", "high"])
 def test_obstacle_iou_after_looking_around_a_room(surveys, camera):
     ious = [
-        obstacle_iou(m, house)
+        start_room_iou(m, house, m.start)
         for (_, agent), (m, house) in surveys.items()
         if CAMERAS[agent] == camera
     ]
@@ -161,13 +145,8 @@ def box_of(thing) -> tuple:
 
 
 def footprint_cells(frame: MapFrame, centre, w: float, d: float, yaw: float, pad: float):
-    r, c = np.mgrid[0 : frame.shape[0], 0 : frame.shape[1]]
-    xy = frame.centres(r, c)
-    cos, sin = math.cos(yaw), math.sin(yaw)
-    px, py = xy[..., 0] - centre[0], xy[..., 1] - centre[1]
-    lx, ly = cos * px + sin * py, -sin * px + cos * py
-    half = frame.cell / 2 + pad
-    return (np.abs(lx) <= w / 2 + half) & (np.abs(ly) <= d / 2 + half)
+    """Cells within ``pad`` (plus half a cell) of a box."""
+    return box_cells(frame, centre, w, d, yaw, frame.cell / 2 + pad + 1e-9)
 
 
 def object_in_view(u, obs, agent: str):
@@ -301,12 +280,7 @@ def test_bad_input_is_named(env):
 @pytest.mark.slow
 @pytest.mark.parametrize("camera", ["low", "high"])
 def test_obstacle_iou_over_twenty_test_episodes(env, camera):
-    ious = [
-        obstacle_iou(looked_around(env, episode, agent), messy_house(env))
-        for episode in range(20)
-        for agent in env.agent_names
-        if CAMERAS[agent] == camera
-    ]
+    ious = survey_iou(env, range(20))[camera]
     assert np.mean(ious) >= 0.85, ious
     assert np.percentile(ious, 10) >= 0.75, ious
 

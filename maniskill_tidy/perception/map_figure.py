@@ -16,6 +16,7 @@ from maniskill_tidy.perception.semantic_map import (
     SemanticMap,
     egocentric_crop,
     ground_truth_obstacles,
+    obstacle_iou,
 )
 from maniskill_tidy.sim.appearance import hashed_colour
 
@@ -110,10 +111,7 @@ def draw_map(
             origin="lower",
             extent=extent,
         )
-        explored = td[..., EXPLORED] > 0
-        mapped = (td[..., OBSTACLE] > 0) & explored
-        truth &= explored
-        iou = float((mapped & truth).sum() / max((mapped | truth).sum(), 1))
+        iou = obstacle_iou(td, truth, td[..., EXPLORED] > 0)
     for f in semantic.frontiers():
         xy = frame.centres(f.cells[:, 0], f.cells[:, 1])
         ax.scatter(xy[:, 0], xy[:, 1], s=2, c="#e53935", marker="s", linewidths=0)

@@ -520,6 +520,17 @@ def share_maps(maps: dict[str, SemanticMap], channel) -> np.ndarray:
     return merge([m.top_down() for m in maps.values()])
 
 
+def box_cells(frame: MapFrame, centre, w: float, d: float, yaw: float, pad: float) -> np.ndarray:
+    """(rows, cols) bool: cells whose centre lies within ``pad`` of a (w x d) box turned by
+    ``yaw`` about ``centre``, measured in the box's own frame."""
+    r, c = np.mgrid[0 : frame.shape[0], 0 : frame.shape[1]]
+    xy = frame.centres(r, c)
+    cos, sin = math.cos(yaw), math.sin(yaw)
+    px, py = xy[..., 0] - centre[0], xy[..., 1] - centre[1]
+    lx, ly = cos * px + sin * py, -sin * px + cos * py
+    return (np.abs(lx) < w / 2 + pad) & (np.abs(ly) < d / 2 + pad)
+
+
 def ground_truth_obstacles(house: House, frame: MapFrame) -> np.ndarray:
     """(rows, cols) bool: cells that walls (door openings cut out), furniture and objects
     reaching into ``OBSTACLE_BAND`` overlap, rasterised from the house spec.
@@ -528,29 +539,33 @@ def ground_truth_obstacles(house: House, frame: MapFrame) -> np.ndarray:
     any hit falls in it; boxes are tested in their own frame (exact for axis-aligned ones)."""
     from maniskill_tidy.houses.navgrid import solid_wall_segments
 
-    rows, cols = frame.shape
-    r, c = np.mgrid[0:rows, 0:cols]
-    xy = frame.centres(r, c)
     pad = frame.cell / 2 - 1e-3
-    out = np.zeros((rows, cols), dtype=bool)
-
-    def cover(centre, w: float, d: float, yaw: float) -> None:
-        cos, sin = math.cos(yaw), math.sin(yaw)
-        px, py = xy[..., 0] - centre[0], xy[..., 1] - centre[1]
-        lx, ly = cos * px + sin * py, -sin * px + cos * py
-        out[(np.abs(lx) < w / 2 + pad) & (np.abs(ly) < d / 2 + pad)] = True
-
-    for a, b, thickness in solid_wall_segments(house):
-        mid = [(a[0] + b[0]) / 2, (a[1] + b[1]) / 2]
-        cover(mid, math.dist(a, b), thickness, math.atan2(b[1] - a[1], b[0] - a[0]))
+    boxes = [
+        (
+            [(a[0] + b[0]) / 2, (a[1] + b[1]) / 2],
+            math.dist(a, b),
+            t,
+            math.atan2(b[1] - a[1], b[0] - a[0]),
+        )
+        for a, b, t in solid_wall_segments(house)
+    ]
     for f in [*house.furniture, *house.objects]:
         z0, z1 = f.position[2], f.position[2] + f.size[2]
         if z1 >= OBSTACLE_BAND[0] and z0 <= OBSTACLE_BAND[1]:
-            cover(f.position, f.size[0], f.size[1], f.yaw)
+            boxes.append((f.position, f.size[0], f.size[1], f.yaw))
     for f in house.furniture:
-        for centre, w, d, yaw in open_links(f):
-            cover(centre, w, d, yaw)
+        boxes.extend(open_links(f))
+    out = np.zeros(frame.shape, dtype=bool)
+    for centre, w, d, yaw in boxes:
+        out |= box_cells(frame, centre, w, d, yaw, pad)
     return out
+
+
+def obstacle_iou(top_down: np.ndarray, truth: np.ndarray, region: np.ndarray) -> float:
+    """IoU of the map's obstacle channel with ``truth`` over the cells of ``region``."""
+    mapped = (top_down[..., OBSTACLE] > 0) & region
+    truth = truth & region
+    return float((mapped & truth).sum() / max((mapped | truth).sum(), 1))
 
 
 def open_links(f) -> list[tuple[list[float], float, float, float]]:
