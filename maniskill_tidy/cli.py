@@ -1,4 +1,9 @@
-"""The ``maniskill-tidy`` command."""
+"""The ``maniskill-tidy`` command.
+
+Every error caused by what the user asked for (a bad argument, a missing, damaged or tampered
+dataset, a bad recording or house file) is one line on stderr naming the problem and what was
+expected, with exit status 2; nothing is half-written.
+"""
 
 from __future__ import annotations
 
@@ -9,6 +14,7 @@ import time
 from pathlib import Path
 
 from maniskill_tidy.knowledge import load_catalog, load_placement
+from maniskill_tidy.tasks.metatask import SINGLE_FRACTION
 
 
 def _generate(args: argparse.Namespace) -> int:
@@ -16,10 +22,17 @@ def _generate(args: argparse.Namespace) -> int:
 
     counts = tuple(int(v) for v in args.split.split(",")) if args.split else None
     if counts is not None and len(counts) != 3:
-        raise SystemExit(f"--split {args.split!r}: expected three counts TRAIN,VAL,TEST")
+        raise ValueError(f"--split {args.split!r}: expected three counts TRAIN,VAL,TEST")
+    if args.workers < 1:
+        raise ValueError(f"--workers must be at least 1, got {args.workers}")
     start = time.perf_counter()
     manifest = generate_dataset(
-        Path(args.out), args.houses, args.seed, counts, workers=args.workers
+        Path(args.out),
+        args.houses,
+        args.seed,
+        counts,
+        workers=args.workers,
+        single_fraction=args.single_fraction,
     )
     elapsed = time.perf_counter() - start
     print(
@@ -31,31 +44,35 @@ def _generate(args: argparse.Namespace) -> int:
 
 
 def _eval(args: argparse.Namespace) -> int:
-    from maniskill_tidy.eval.runner import RunConfig, evaluate, run_dir
+    from maniskill_tidy.eval.runner import RunConfig, episode_spec, evaluate, run_dir
 
     cfg = RunConfig(
         policy=args.policy,
         setting=args.setting,
         split=args.split,
         dataset=args.dataset,
-        episodes=args.episodes,
+        episodes=episode_spec(args.episodes),
         seed=args.seed,
         task_type=args.task_type,
     )
-    try:
-        summary = evaluate(
-            cfg, Path(args.out), workers=args.workers, record=args.record, images=args.images
-        )
-    except (ValueError, KeyError) as err:
-        raise SystemExit(f"maniskill-tidy eval: {err}") from None
+    summary = evaluate(
+        cfg, Path(args.out), workers=args.workers, record=args.record, images=args.images
+    )
     rows = summary["metrics"]
-    print(f"{args.policy}, setting {args.setting}, {args.split}: {summary['episodes']} episodes")
+    print(
+        f"{args.policy}, setting {args.setting}, {args.split} ({summary['protocol']}): "
+        f"{summary['episodes']} episodes"
+    )
     for split, m in rows.items():
         if m["episodes"]:
+            lo, hi = m["ci95"]["Success"]
             print(
-                f"  {split:6s} Success {m['Success']:.3f}  %PS {m['%PS']:.3f}  "
-                f"%FM {m['%FM']:.3f}  #PL {m['#PL']:.1f}  ACm {m['ACm']:.1f}  ({m['episodes']} ep)"
+                f"  {split:6s} Success {m['Success']:.3f} [{lo:.3f}, {hi:.3f}]  "
+                f"%PS {m['%PS']:.3f}  %FM {m['%FM']:.3f}  #PL {m['#PL']:.1f}  "
+                f"ACm {m['ACm']:.1f}  ({m['episodes']} ep)"
             )
+    if len(summary["code_versions"]) > 1:
+        print(f"  note: this run mixes code versions {summary['code_versions']}")
     print(f"wrote {run_dir(Path(args.out), cfg) / 'summary.json'}")
     return 0
 
@@ -74,8 +91,12 @@ def _replay(args: argparse.Namespace) -> int:
 
     path = Path(args.file)
     if not path.is_file() or path.suffix != ".rrd":
-        raise SystemExit(f"maniskill-tidy replay: {path} is not an .rrd recording")
+        raise ValueError(f"{path} is not an .rrd recording (expected a file made by eval --record)")
     viewer = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
+    check = subprocess.run([viewer, "rrd", "verify", str(path)], capture_output=True, text=True)
+    if check.returncode != 0:
+        reason = (check.stderr.strip().splitlines() or ["rerun rrd verify failed"])[-1]
+        raise ValueError(f"{path} is damaged ({reason}); record the episode again")
     cmd = [viewer, str(path)] + (["--web-viewer"] if args.web else [])
     print(" ".join(cmd))
     return subprocess.call(cmd)
@@ -125,12 +146,17 @@ def _show_house(args: argparse.Namespace) -> int:
     if args.procthor:
         from maniskill_tidy.houses.procthor import read_procthor_houses
 
+        problems: list[str] = []
+        wanted = f"procthor_{args.index:05d}"
         house = next(
-            (h for i, h in enumerate(read_procthor_houses(Path(args.procthor))) if i == args.index),
+            (h for h in read_procthor_houses(Path(args.procthor), problems) if h.id == wanted),
             None,
         )
         if house is None:
-            raise SystemExit(f"{args.procthor} has fewer than {args.index + 1} houses")
+            bad = [p for p in problems if p.startswith(f"house {args.index} ")]
+            raise ValueError(
+                bad[0] if bad else f"{args.procthor} has fewer than {args.index + 1} houses"
+            )
     elif args.dataset:
         from maniskill_tidy.tasks.dataset import load_dataset
         from maniskill_tidy.tasks.metatask import apply_task
@@ -138,12 +164,12 @@ def _show_house(args: argparse.Namespace) -> int:
         data = load_dataset(Path(args.dataset), args.split)
         houses = list(data.houses.values())
         if not 0 <= args.index < len(houses):
-            raise SystemExit(f"--index {args.index}: split {args.split} has {len(houses)} houses")
+            raise ValueError(f"--index {args.index}: split {args.split} has {len(houses)} houses")
         house = houses[args.index]
         if args.task is not None:
             tasks = [t for t in data.tasks if t.house_id == house.id]
             if not 0 <= args.task < len(tasks):
-                raise SystemExit(f"--task {args.task}: {house.id} has {len(tasks)} meta-tasks")
+                raise ValueError(f"--task {args.task}: {house.id} has {len(tasks)} meta-tasks")
             task = tasks[args.task]
             house = apply_task(house, task)
             highlight = {m.object: "#d32f2f" for m in task.misplaced}
@@ -238,6 +264,13 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--out", required=True)
     g.add_argument("--split", help="TRAIN,VAL,TEST house counts (default: 4:1:1 as 80/20/20)")
     g.add_argument("--workers", type=int, default=1)
+    g.add_argument(
+        "--single-fraction",
+        type=float,
+        default=SINGLE_FRACTION,
+        help="share of meta-tasks meant to be Single-room (default %(default)s: the paper's "
+        "test split, 565 of 1000)",
+    )
     g.set_defaults(func=_generate)
 
     v = sub.add_parser("validate", help="check a dataset and explain what is wrong")
@@ -281,12 +314,25 @@ def build_parser() -> argparse.ArgumentParser:
     sm.add_argument("--out", default="map.png")
     sm.set_defaults(func=_show_map)
 
-    ev = sub.add_parser("eval", help="evaluate a team on a split (resumable, JSONL + summary)")
+    ev = sub.add_parser(
+        "eval",
+        help="evaluate a team on a split (resumable, JSONL + summary)",
+        description="Evaluate a team. The standard protocol (the default) plays the first start "
+        "of every meta-task of the split (200 episodes on the 120-house test split), "
+        "deterministically (episode i gets seed SEED + i); --episodes all plays all five starts "
+        "(the paper's 1000), --episodes N an evenly spread subset. Every metric gets a 95%% "
+        "bootstrap interval over episodes (seeded) in summary.json.",
+    )
     ev.add_argument("--policy", required=True, help="a team name (see `maniskill-tidy policies`)")
     ev.add_argument("--setting", default="I", help="I, II or a preset JSON file")
     ev.add_argument("--split", default="test", choices=("train", "val", "test"))
     ev.add_argument("--task-type", default="all", choices=("all", "single", "cross"))
-    ev.add_argument("--episodes", type=int, help="evenly spread subset of the split (default all)")
+    ev.add_argument(
+        "--episodes",
+        default="standard",
+        help="standard (first start of every meta-task, the default), all, or a number N "
+        "(an evenly spread subset)",
+    )
     ev.add_argument("--workers", type=int, default=1)
     ev.add_argument("--record", default="none", choices=("none", "failures", "all"))
     ev.add_argument("--dataset", help="dataset directory (default: the env's shipped dataset)")
@@ -329,8 +375,16 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from maniskill_tidy.houses.procthor import ProcTHORImportError
+    from maniskill_tidy.tasks.dataset import DatasetError
+
     args = build_parser().parse_args(argv)
-    return args.func(args)
+    try:
+        return args.func(args)
+    except (DatasetError, ProcTHORImportError, ValueError, KeyError, OSError) as err:
+        message = err.args[0] if isinstance(err, KeyError) and err.args else err
+        print(f"maniskill-tidy {args.command}: {message}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

@@ -108,7 +108,7 @@ def test_capabilities_spaces_and_camera_heights(env):
         cam_to_world = np.linalg.inv(o["extrinsics"])
         assert cam_to_world[2, 3] == pytest.approx(height, abs=1e-3)
         assert env.observation_space[name].contains(o)
-    with pytest.raises(ValueError, match="out of range"):
+    with pytest.raises(ValueError, match="agent_0 cannot manipulate"):
         env.step({"agent_0": Action.PickUp.value, "agent_1": 0, "agent_2": 0})
 
 
@@ -120,6 +120,14 @@ def test_bad_input_errors_name_the_problem(env):
         env.step({"agent_0": 0})
     with pytest.raises(ValueError, match="out of range"):
         env.step({"agent_0": 0, "agent_1": 0, "agent_2": 11})
+    for bad in (1.5, "3", True, np.float32(2.0), None):  # not integers: refused, not converted
+        with pytest.raises(TypeError, match="expected an integer action index"):
+            env.step({"agent_0": bad, "agent_1": 0, "agent_2": 0})
+    with pytest.raises(ValueError, match="agent_1 cannot manipulate"):
+        env.step({"agent_0": 0, "agent_1": Action.Drop, "agent_2": 0})
+    with pytest.raises(ValueError, match=r"only PickUp and PutDown take a target"):
+        env.step({"agent_0": 0, "agent_1": 0, "agent_2": Targeted(Action.Drop, "x")})
+    assert all(a.steps == 0 for a in env.unwrapped.agents), "a refused step changed the episode"
     with pytest.raises(ValueError, match="team of 5 agents"):
         HeteroTidyEnv(setting=[(1, 0, 0)] * 5, split="test")
     with pytest.raises(ValueError, match="unknown setting"):
@@ -254,7 +262,7 @@ def test_pickup_out_of_reach_fails_and_in_reach_succeeds(env):
     assert info["held"]["agent_2"] == oid and oid in info["picked"]
     assert int(obs["agent_2"]["held"]) == sid
     # a navigation-only agent has no PickUp at all
-    with pytest.raises(ValueError, match="out of range"):
+    with pytest.raises(ValueError, match="cannot manipulate"):
         env.step({"agent_0": 8, "agent_1": 0, "agent_2": 0})
 
 

@@ -8,13 +8,18 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+from maniskill_tidy.eval.leaderboard import paper_reference, write_leaderboard
 from maniskill_tidy.eval.metrics import EpisodeRecord, ces, summarize
-from maniskill_tidy.eval.runner import read_records, select
+from maniskill_tidy.eval.paper_tables import extract
+from maniskill_tidy.eval.runner import RunConfig, evaluate, read_records, select
 from maniskill_tidy.policies.channel import CENTRAL, Channel
+
+REFERENCE = Path(__file__).resolve().parents[2] / "shared" / "reference"
 
 
 def rec(kind: str, k: int, reasonable: int, found: int, length: int, comm: int, agents: int = 3):
@@ -77,11 +82,30 @@ def test_channel_counts_every_dimension_received():
     assert hub.total == 3 and hub.groups() == [["a", "b"]]
 
 
-def test_episode_selection_is_spread_and_deterministic():
-    assert select(1000, None) == list(range(1000))
-    assert select(1000, 4) == [0, 250, 500, 750]
-    with pytest.raises(ValueError, match="positive"):
-        select(10, 0)
+def test_episode_selection_follows_the_protocol():
+    starts = [s for _ in range(200) for s in range(5)]  # 200 meta-tasks x 5 starts
+    standard = select(starts, "standard")
+    assert len(standard) == 200 and all(starts[i] == 0 for i in standard)
+    assert select(starts, "all") == list(range(1000))
+    assert select(starts, 4) == [0, 250, 500, 750]
+    assert select(starts, "4") == [0, 250, 500, 750]
+    for bad in (0, -3, "1.5", "some", "4x"):
+        with pytest.raises(ValueError, match="--episodes"):
+            select(starts, bad)
+
+
+def test_bootstrap_intervals_are_seeded_and_cover_the_mean():
+    records = [rec("Single", 2, 2 * (i % 3 == 0), 2, 50 + i, 0) for i in range(60)]
+    a, b = summarize(records), summarize(records)
+    assert a == b  # seeded: the same records give the same intervals
+    m = a["All"]
+    for metric in ("Success", "%PS", "#PL"):
+        lo, hi = m["ci95"][metric]
+        assert lo < m[metric] < hi
+    lo, hi = m["ci95"]["Success"]
+    assert 0.15 < hi - lo < 0.5  # about 2 x 1.96 x sqrt(p (1 - p) / n) for p = 1/3, n = 60
+    wider = summarize(records[:15])["All"]["ci95"]["Success"]
+    assert wider[1] - wider[0] > hi - lo  # fewer episodes, wider interval
 
 
 def test_read_records_cuts_a_torn_last_line(tmp_path):
@@ -121,3 +145,130 @@ def test_runner_resumes_after_a_kill_with_the_same_totals(tmp_path):
         _eval(tmp_path / "cut", ["--seed", "5"]), capture_output=True, text=True, timeout=600
     )
     assert refused.returncode != 0 and "other arguments" in refused.stderr
+
+
+# ---------------------------------------------------------------------- runs, workers, the floor
+def _records(path) -> list[dict]:
+    rows = [json.loads(x) for x in path.read_text().splitlines()]
+    for r in rows:
+        r.pop("seconds")
+    return sorted(rows, key=lambda r: r["episode"])
+
+
+@pytest.fixture(scope="module")
+def expert_runs(tmp_path_factory):
+    """The expert under the standard protocol on the shipped test split, 1 and 2 workers."""
+    root = tmp_path_factory.mktemp("runs")
+    cfg = RunConfig("expert", "I", "test", None, "standard")
+    out = {w: evaluate(cfg, root / f"w{w}", workers=w, progress=False) for w in (1, 2)}
+    return root, out
+
+
+def test_one_and_two_workers_give_identical_episode_records(expert_runs, tmp_path):
+    root, _ = expert_runs
+    tail = "eval/results/setting_I/expert/episodes.jsonl"
+    assert _records(root / "w1" / tail) == _records(root / "w2" / tail)
+    cfg = RunConfig("random", "II", "test", None, 3)  # per-agent random streams, 4 agents
+    for w in (1, 2):
+        evaluate(cfg, tmp_path / f"r{w}", workers=w, progress=False)
+    tail = "eval/results/setting_II/random/episodes.jsonl"
+    assert _records(tmp_path / "r1" / tail) == _records(tmp_path / "r2" / tail)
+
+
+def test_the_expert_solves_most_standard_test_episodes(expert_runs):
+    _, summaries = expert_runs
+    m = summaries[1]["metrics"]["All"]
+    assert m["episodes"] == 20  # first start of each of the split's 20 meta-tasks
+    assert summaries[1]["protocol"] == "standard"
+    assert m["Success"] >= 0.85, m  # measured 0.95 on the 120-house test split (1000 episodes)
+    assert m["ci95"]["Success"][0] <= m["Success"] <= m["ci95"]["Success"][1]
+
+
+# ---------------------------------------------------------------------- leaderboard, paper tables
+def _summary(policy: str, success: list[bool], acm_values: int, **extra) -> dict:
+    records = [
+        rec("Single" if i % 2 else "Cross", 2, 2 if ok else 0, 2, 100, acm_values * 100 * 3)
+        for i, ok in enumerate(success)
+    ]
+    return {
+        "policy": policy,
+        "setting": "I",
+        "team": [[1, 0, 0], [1, 0, 1], [1, 1, 1]],
+        "communication": extra.get("communication", "none"),
+        "privileged": False,
+        "perception": "ground truth",
+        "protocol": "standard",
+        "dataset_hash": "abc" * 10,
+        "code_version": extra.get("versions", ["v1"])[-1],
+        "code_versions": extra.get("versions", ["v1"]),
+        "episodes": len(records),
+        "metrics": summarize(records),
+        "episode_seconds_mean": 1.0,
+    }
+
+
+def test_leaderboard_assembles_ces_intervals_and_notes(tmp_path):
+    runs = {
+        "sa": _summary("sa", [True, False, False, False] * 5, 0),
+        "heuristic-broadcast": _summary(
+            "heuristic-broadcast", [True, True, False, False] * 5, 820, communication="broadcast"
+        ),
+        "heuristic-central": _summary(
+            "heuristic-central",
+            [True, True, True, False] * 5,
+            416,
+            communication="central",
+            versions=["v1", "v2"],
+        ),
+    }
+    for policy, s in runs.items():
+        path = tmp_path / "results" / "setting_I" / policy / "summary.json"
+        path.parent.mkdir(parents=True)
+        path.write_text(json.dumps(s))
+    md = write_leaderboard(tmp_path).read_text()
+    rows = {
+        line.split("|")[1].strip(): line.split("|")[2:-1]
+        for line in md.splitlines()
+        if line.startswith("| **")
+    }
+    broadcast = [c.strip() for c in rows["**heuristic-broadcast**"]]
+    lo, hi = runs["heuristic-broadcast"]["metrics"]["All"]["ci95"]["Success"]
+    assert broadcast[2] == f"0.500 [{lo:.2f}, {hi:.2f}]"  # Success All with its interval
+    assert broadcast[-1] == f"{ces(0.5, 0.25, 820.0):.1f}"  # CES All against our SA row
+    assert ces(0.5, 0.25, 820.0) == pytest.approx(10000 * 0.25 / 820)
+    central_row = next(k for k in rows if "heuristic-central" in k)
+    assert "‡" in central_row and "†" in "".join(rows[central_row])
+    assert "the paper gives CentralComm. the broadcast figure" in md
+    assert "code versions ['v1', 'v2']" in md
+    assert "SA *(paper)*" in md  # the paper's rows beside ours
+    assert (tmp_path / "leaderboard.png").read_bytes()[:4] == b"\x89PNG"
+
+
+SA_CELLS = "0.1 0.2 0.15 0.3 0.4 0.35 0.5 0.6 0.55 100.0 200.0 150.0 - - - - - -"
+OURS_CELLS = (
+    r"\textbf{0.121} 0.079 0.103 0.194 0.16 0.179 0.739 0.726 0.733 186.1 252.6 215.0 "
+    "363.1 366.5 364.6 2.1 1.4 1.8"
+)
+TINY_TABLE = "\n".join(
+    [
+        r"\caption{x}\label{quan1}",
+        r"\begin{tabular}{c|ccc}",
+        r"\multirow{2}{*}{Methods} & \multicolumn{3}{c}{Success} \\",
+        r"& Single & Cross & All & Single & Cross & All \\",
+        "SA & " + " & ".join(SA_CELLS.split()) + r" \\",
+        r"\rowcolor{lightgray!30} Ours & " + " & ".join(OURS_CELLS.split()) + r" \\",
+        r"\end{tabular}",
+    ]
+)
+
+
+def test_paper_tables_are_extracted_cell_by_cell():
+    tex = TINY_TABLE + TINY_TABLE.replace("quan1", "quan2")
+    ref = extract(tex)
+    assert ref["rows"]["I"]["SA"][:3] == [0.1, 0.2, 0.15] and ref["rows"]["I"]["SA"][-1] is None
+    assert ref["rows"]["I"]["Ours"][0] == 0.121  # bold stripped
+    assert ref["rows"]["II"]["Ours"][-3:] == [2.1, 1.4, 1.8]
+    assert len(ref["columns"]) == 18
+    paper = REFERENCE / "../paper/heterogeneous-embodied-multi-agent-collaboration.tex"
+    if paper.is_file():  # the shipped table is what the paper says
+        assert extract(paper.read_text())["rows"] == paper_reference()["rows"]

@@ -1,21 +1,25 @@
-"""Navigation helpers, and what the heuristic teams put on the channel."""
+"""Navigation helpers, and the messages camera-only teams put on the channel."""
 
 from __future__ import annotations
 
 import networkx as nx
 import numpy as np
+import pytest
 
 from maniskill_tidy.envs.actions import Action, AgentState
 from maniskill_tidy.envs.episodes import default_dataset
-from maniskill_tidy.policies.base import PublicInfo, SubTask
-from maniskill_tidy.policies.channel import CENTRAL, Channel
-from maniskill_tidy.policies.heuristic import (
-    BroadcastTeam,
-    CentralTeam,
-    DetectionCommTeam,
-    Known,
-    NoCommTeam,
-    camera_pitch,
+from maniskill_tidy.perception.semantic_map import SemanticMap
+from maniskill_tidy.policies.base import SubTask
+from maniskill_tidy.policies.heuristic import camera_pitch
+from maniskill_tidy.policies.messages import (
+    FETCH,
+    STATE_DIMS,
+    decode_assignment,
+    decode_crop,
+    decode_state,
+    encode_assignment,
+    encode_crop,
+    encode_state,
 )
 from maniskill_tidy.policies.navigation import GridPlanner, move_towards, subgoal, turn_towards
 from maniskill_tidy.tasks.dataset import load_dataset
@@ -66,40 +70,42 @@ def test_camera_pitch_is_read_off_the_extrinsics():
         assert camera_pitch(extrinsics) == pitch
 
 
-def _team(cls):
+def test_state_messages_round_trip_in_ten_values():
+    subtask = SubTask("Place", "Apple", "CounterTop", "Kitchen")
+    v = encode_state((1, 1, 1), (2.5, -1.25, 270), subtask)
+    assert v.shape == (STATE_DIMS,) == (10,)
+    st = decode_state(v)
+    assert st.capability == (1, 1, 1) and st.pose == (2.5, -1.25, 270)
+    assert st.subtask == subtask and not st.parking
+    assert decode_state(encode_state((1, 0, 0), (0, 0, 0), SubTask("Park"))).parking
+    with pytest.raises(ValueError, match="10 values"):
+        decode_state(np.zeros(9, np.float32))
+
+
+@pytest.mark.parametrize("rotation", [0, 90, 180, 270])
+def test_a_map_crop_is_400_values_and_lands_where_the_sender_saw_it(rotation):
     house = _house()
-    team = cls()
-    channel = Channel([f"agent_{i}" for i in range(3)], central=team.central)
-    team.reset(PublicInfo(house, list(channel.agents), TEAM, "e", 0, {}), channel)
-    agents = [
-        AgentState(n, c, (3, 3 + i), 0)
-        for i, (n, c) in enumerate(zip(channel.agents, TEAM, strict=True))
-    ]
-    for a in agents:
-        team.jobs[a.name] = ("explore", "", None, SubTask("Explore"))
-    return team, channel, agents
+    m = SemanticMap(house, {})
+    nav = house.navgrid
+    middle = np.array(nav.shape) / 2
+    cell = min(
+        ((r, c) for r in range(nav.shape[0]) for c in range(nav.shape[1]) if nav.free(r, c)),
+        key=lambda rc: float(np.hypot(*(np.array(rc) - middle))),
+    )
+    x, y = nav.center(*cell)
+    pose = (x, y, rotation)
+    apple = np.array([x + 1.1, y - 0.6, 0.3])  # 1.1 m east, 0.6 m south of the sender
+    crop = encode_crop(m, pose, [("Apple", apple)])
+    assert crop.shape == (400,) and (crop < 0).sum() == 1
+    cells = decode_crop(crop, pose, nav)
+    ((kind, xy),) = cells.misplaced
+    assert kind == "Apple" and np.hypot(xy[0] - apple[0], xy[1] - apple[1]) < 0.25
+    assert len(cells.explored[0]) == 1  # the apple's cell; nothing else was seen
+    assert (cells.explored[0][0], cells.explored[1][0]) == nav.cell_of(*xy)
 
 
-def test_broadcast_sends_state_map_and_detections_to_every_other_agent():
-    team, channel, agents = _team(BroadcastTeam)
-    team.memory["agent_0"].objects["Apple_0"] = Known("Apple_0", 7, "Apple", np.zeros(3), True)
-    team.memory["agent_0"].objects["Bowl_0"] = Known("Bowl_0", 8, "Bowl", np.zeros(3), False)
-    team._send(agents[0], ["agent_1", "agent_2"])
-    kinds = {(m.receiver, m.kind): m.dims for m in channel.step_messages}
-    assert kinds[("agent_1", "state")] == 10 and kinds[("agent_2", "map")] == 400
-    assert kinds[("agent_1", "detections")] == 6  # one misplaced object known, not the bowl
-    assert channel.total == 2 * (10 + 400 + 6)
-    team._send(agents[1], ["agent_0", "agent_2"])  # nothing misplaced known: no detections
-    assert channel.total == 2 * (10 + 400 + 6) + 2 * 410
-
-
-def test_the_patterns_differ_in_what_they_send():
-    assert NoCommTeam.communication == "none" and DetectionCommTeam.communication == "detection"
-    team, channel, agents = _team(CentralTeam)
-    assert CENTRAL in channel.endpoints
-    team._central_node(agents)
-    up = [m for m in channel.step_messages if m.receiver == CENTRAL]
-    down = [m for m in channel.step_messages if m.sender == CENTRAL]
-    assert {m.sender for m in up} == {"agent_0", "agent_1", "agent_2"}
-    assert [m.receiver for m in down] == ["agent_2"]  # only the manipulator gets an assignment
-    assert down[0].dims == 6
+def test_assignments_are_six_values():
+    v = encode_assignment(FETCH, "Apple", (1.0, 2.0, 0.5))
+    assert v.shape == (6,)
+    kind, object_type, xyz = decode_assignment(v)
+    assert kind == FETCH and object_type == "Apple" and list(xyz) == [1.0, 2.0, 0.5]

@@ -15,7 +15,13 @@ from maniskill_tidy.tasks.dataset import (
     sha256,
     write_manifest,
 )
-from maniskill_tidy.tasks.metatask import Location, Misplacement, generate_meta_tasks, label
+from maniskill_tidy.tasks.metatask import (
+    Location,
+    Misplacement,
+    generate_meta_tasks,
+    label,
+    single_schedule,
+)
 from maniskill_tidy.tasks.stats import dataset_stats
 from maniskill_tidy.tasks.teams import SETTINGS, team
 from maniskill_tidy.tasks.validate import check_task, validate_dataset
@@ -192,3 +198,30 @@ def test_paper_sized_dataset_validates(tmp_path):
     manifest = generate_dataset(tmp_path / "d120", 120, seed=0, progress=False, workers=2)
     assert manifest["tasks"] == {"train": 800, "val": 200, "test": 200}
     assert validate_dataset(tmp_path / "d120", progress=False) == []
+    # the paper's test split has 565 Single episodes of 1000 (5 starts per meta-task)
+    test = load_dataset(tmp_path / "d120", "test")
+    single = 5 * sum(t.kind == "Single" for t in test.tasks)
+    assert abs(single - 565) <= 30, single
+
+
+def test_single_schedule_gives_the_fraction_whatever_the_one_room_houses():
+    multi, one = generate_house(0, 3), generate_house(0, 3, spec=["Kitchen"])
+    assert len(multi.rooms) > 1 and len(one.rooms) == 1
+    for n_one in (0, 2, 5):
+        houses = [one] * n_one + [multi] * (20 - n_one)
+        schedule = single_schedule(houses, list(range(20)), seed=0, fraction=0.565)
+        assert sum(len(v) for v in schedule.values()) == 113  # round(0.565 * 200)
+        assert all(schedule[i] == set(range(10)) for i in range(n_one))
+        counts = [len(schedule[i]) for i in range(n_one, 20)]
+        assert max(counts) - min(counts) <= 1  # spread evenly over the multi-room houses
+    assert single_schedule([multi], [7], 0) == single_schedule([multi], [7], 0)
+    with pytest.raises(ValueError, match="Single fraction"):
+        single_schedule([multi], [0], 0, fraction=1.5)
+
+
+def test_a_cross_task_moves_an_object_to_another_room_and_a_single_one_does_not():
+    house = generate_house(4, 2)
+    assert len(house.rooms) > 1
+    tasks = generate_meta_tasks(house, 4, 2, single={0, 1, 2, 3, 4})
+    assert [t.kind for t in tasks[:5]] == ["Single"] * 5
+    assert all(t.kind == "Cross" for t in tasks[5:])

@@ -39,6 +39,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from enum import IntEnum
 
+import numpy as np
+
 
 class Action(IntEnum):
     MoveAhead = 0
@@ -105,21 +107,28 @@ def move_target(state: AgentState, action: Action) -> tuple[int, int]:
 
 
 def parse_action(value, n_actions: int, agent: str) -> tuple[Action, str | None]:
-    """An int, a NumPy integer or a :class:`Targeted`, checked against the agent's space."""
+    """An int (Python, NumPy or an :class:`Action`) or a :class:`Targeted`, checked against the
+    agent's space. Floats, strings and booleans are refused, not converted."""
     target = None
     if isinstance(value, Targeted):
         value, target = value.action, value.target
-    try:
-        index = int(value)
-    except (TypeError, ValueError):
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
         raise TypeError(
-            f"action for {agent} is {value!r}; expected an int in [0, {n_actions}) "
-            "or a Targeted(action, target)"
-        ) from None
-    if not 0 <= index < n_actions or index != value:
+            f"action for {agent} is {value!r} ({type(value).__name__}); expected an integer "
+            f"action index in [0, {n_actions}) or a Targeted(action, target)"
+        )
+    index = int(value)
+    if n_actions == NAVIGATION_ACTIONS and NAVIGATION_ACTIONS <= index < MANIPULATION_ACTIONS:
+        raise ValueError(
+            f"{agent} cannot manipulate (Mani = 0): {Action(index).name} needs a manipulator; "
+            f"its actions are 0..{NAVIGATION_ACTIONS - 1} (MoveAhead..Stop)"
+        )
+    if not 0 <= index < n_actions:
         names = ", ".join(f"{a.value}={a.name}" for a in list(Action)[:n_actions])
-        raise ValueError(f"action {value!r} for {agent} is out of range; its actions are {names}")
+        raise ValueError(f"action {index} for {agent} is out of range; its actions are {names}")
     action = Action(index)
     if target is not None and action not in (Action.PickUp, Action.PutDown):
         raise ValueError(f"{agent}: only PickUp and PutDown take a target, not {action.name}")
+    if target is not None and not isinstance(target, str):
+        raise TypeError(f"{agent}: a target is an id string, got {target!r}")
     return action, target

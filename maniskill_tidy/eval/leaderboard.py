@@ -4,7 +4,8 @@ Rows are methods, columns Success, %PS, %FM, #PL, ACm and CES for Single / Cross
 come from ``eval/results/setting_*/<policy>/summary.json``; the paper's own figures (measured in
 AI2-THOR/ProcTHOR with learned models, so not directly comparable) follow as reference rows.
 CES needs the single-agent baseline's success in the same setting and split: our ``sa`` run for
-our rows, the paper's SA row for the paper's.
+our rows, the paper's SA row for the paper's. Our Success cells carry their 95 % bootstrap
+interval; a run whose episodes were played by more than one code version is flagged.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from pathlib import Path
 from maniskill_tidy.eval.metrics import SPLITS, ces
 
 COLUMNS = ("Success", "%PS", "%FM", "#PL", "ACm", "CES")
+SAME_IN_EVERY_SETTING = ("sa",)  # policies whose team_override fixes the team
 ORDER = (
     "sa",
     "random",
@@ -33,18 +35,41 @@ def paper_reference() -> dict:
 
 
 def collect(root: Path) -> dict[str, dict[str, dict]]:
-    """setting -> policy -> summary, for every summary.json under ``root``/results."""
+    """setting -> policy -> summary, for every summary.json under ``root``/results.
+
+    A team that plays with its own team whatever the setting (SA: one manipulator, starting
+    where Setting I's first agent does) plays the same episodes in every setting; its run in
+    one setting stands for the others that lack one, marked so."""
     out: dict[str, dict[str, dict]] = {}
     for path in sorted(Path(root).glob("results/setting_*/*/summary.json")):
         summary = json.loads(path.read_text())
         out.setdefault(summary["setting"], {})[summary["policy"]] = summary
+    for setting, runs in out.items():
+        for other, other_runs in out.items():
+            for policy, s in other_runs.items():
+                same_everywhere = policy in SAME_IN_EVERY_SETTING and "shared_from" not in s
+                if same_everywhere and policy not in runs and other != setting:
+                    runs[policy] = {**s, "setting": setting, "shared_from": other}
     return out
+
+
+# Where our count differs from the paper's, said next to the figure.
+ACM_NOTES = {
+    "central": "ACm counts the uploads to the central node and the assignments it sends back "
+    "(410 + 6 values per agent and step); the paper gives CentralComm. the broadcast figure "
+    "(820 in Setting I, 1230 in II).",
+}
 
 
 def _fmt(v, column: str) -> str:
     if v is None:
         return "-"
     return f"{v:.1f}" if column in ("#PL", "ACm", "CES") else f"{v:.3f}"
+
+
+def _interval(m: dict, column: str) -> str:
+    ci = (m.get("ci95") or {}).get(column)
+    return f" [{ci[0]:.2f}, {ci[1]:.2f}]" if ci else ""
 
 
 def _our_row(summary: dict, sa: dict | None) -> list[str]:
@@ -60,7 +85,12 @@ def _our_row(summary: dict, sa: dict | None) -> list[str]:
                 v = None  # one agent: nobody to talk to
             else:
                 v = m[column]
-            cells.append(_fmt(v, column))
+            cell = _fmt(v, column)
+            if column == "Success" and v is not None:
+                cell += _interval(m, column)
+            if column == "ACm" and summary.get("communication") in ACM_NOTES and v is not None:
+                cell += " †"
+            cells.append(cell)
     return cells
 
 
@@ -68,25 +98,39 @@ def table(setting: str, runs: dict[str, dict], reference: dict) -> str:
     head = "| Method | " + " | ".join(f"{c} {s}" for c in COLUMNS for s in SPLITS) + " |"
     lines = [head, "|---" * (1 + len(COLUMNS) * len(SPLITS)) + "|"]
     sa = runs.get("sa")
+    notes = []
     for policy in sorted(runs, key=lambda p: (ORDER.index(p) if p in ORDER else 99, p)):
         s = runs[policy]
         tag = " (privileged)" if s.get("privileged") else ""
+        if s.get("shared_from"):
+            tag += f" (the Setting {s['shared_from']} run: the same team and episodes)"
+        if len(s.get("code_versions", [])) > 1:
+            tag += " ‡"
+            notes.append(f"‡ {policy}: episodes played by code versions {s['code_versions']}.")
+        if s.get("communication") in ACM_NOTES:
+            notes.append(f"† {policy}: {ACM_NOTES[s['communication']]}")
         lines.append(f"| **{policy}**{tag} | " + " | ".join(_our_row(s, sa)) + " |")
     for name, values in reference["rows"].get(setting, {}).items():
         cells = [_fmt(v, COLUMNS[i // 3]) for i, v in enumerate(values)]
         lines.append(f"| {name} *(paper)* | " + " | ".join(cells) + " |")
+    if notes:
+        lines += [""] + [f"{n}  " for n in notes]
     return "\n".join(lines)
 
 
 def details(runs: dict[str, dict]) -> str:
     lines = [
-        "| Method | team | communication | perception | episodes | dataset | code | s/episode |",
-        "|---|---|---|---|---|---|---|---|",
+        "| Method | team | communication | perception | protocol | episodes | dataset | code "
+        "| s/episode |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for policy, s in sorted(runs.items()):
+        code = ", ".join(s.get("code_versions") or [s["code_version"]])
+        if len(s.get("code_versions") or []) > 1:
+            code += " (mixed)"
         lines.append(
             f"| {policy} | {s['team']} | {s['communication']} | {s['perception'] or '-'} | "
-            f"{s['episodes']} | {s['dataset_hash'][:12]} | {s['code_version']} | "
+            f"{s.get('protocol', '-')} | {s['episodes']} | {s['dataset_hash'][:12]} | {code} | "
             f"{s['episode_seconds_mean']} |"
         )
     return "\n".join(lines)
@@ -147,7 +191,10 @@ def write_leaderboard(root: Path = Path("eval")) -> Path:
         "--split test --dataset DIR` (see the details table). Rows marked *(paper)* are the "
         "figures the paper reports (AI2-THOR/ProcTHOR, learned models): reference points, not "
         "runs of this code. *(privileged)* rows read the simulator state. Non-privileged teams "
-        "here use ground-truth instance segmentation in place of a trained detector.",
+        "here use ground-truth instance segmentation in place of a trained detector. Our "
+        "Success cells give the 95 % bootstrap interval over episodes in brackets. The "
+        "standard protocol is the first start of every meta-task of the test split "
+        "(200 episodes per setting); the paper's full protocol plays all 1000.",
         "",
         "![success against communication](leaderboard.png)",
         "",

@@ -7,6 +7,10 @@ Rerunning the same command skips the episodes already in the JSONL file, so an i
 resumes where it stopped and never counts an episode twice; a torn last line is cut off; a run
 directory made with different arguments is refused. Episode ``i`` always gets seed
 ``seed + i``, whatever the number of workers, so results do not depend on it.
+
+Which episodes (``RunConfig.episodes``): ``"standard"``, the benchmark's protocol, plays the
+first start of every meta-task of the split (200 episodes on the 120-house test split);
+``"all"`` plays every start (the paper's 1000); a number ``N`` an evenly spread subset.
 """
 
 from __future__ import annotations
@@ -23,13 +27,14 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from maniskill_tidy.eval.episode import play_episode
 from maniskill_tidy.eval.metrics import EpisodeRecord, summarize
 from maniskill_tidy.policies import POLICIES, make_team
-from maniskill_tidy.policies.base import PublicInfo
-from maniskill_tidy.policies.channel import CENTRAL, Channel
+from maniskill_tidy.policies.channel import CENTRAL
 from maniskill_tidy.tasks.dataset import write_atomic
 
 RECORD_MODES = ("none", "failures", "all")
+ALL_IMAGES = "rgb+depth+segmentation"
 
 
 @dataclass(frozen=True)
@@ -38,18 +43,26 @@ class RunConfig:
     setting: str
     split: str
     dataset: str | None  # None: the env's shipped default dataset
-    episodes: int | None  # None: every episode of the split
+    episodes: str | int = "standard"  # "standard", "all" or a number (see the top)
     seed: int = 0
     task_type: str = "all"
 
-    def env_kwargs(self, images: bool) -> dict:
+    def env_kwargs(self, images: bool | str) -> dict:
+        """``images``: True for every camera image, False for the team's own observation
+        mode (``Team.observations``, "none" for teams that ignore images), or an obs_mode."""
         team_cls = POLICIES[self.policy]
+        if isinstance(images, str):
+            mode = images
+        elif images:
+            mode = ALL_IMAGES
+        else:
+            mode = team_cls.observations if team_cls.needs_images else "none"
         return {
             "setting": getattr(team_cls, "team_override", None) or self.setting,
             "dataset": self.dataset,
             "split": self.split,
             "task_type": self.task_type,
-            "obs_mode": "rgb+depth+segmentation" if images else "none",
+            "obs_mode": mode,
             "reward_mode": "none",
         }
 
@@ -79,7 +92,7 @@ def code_version() -> str:
 
 
 # ---------------------------------------------------------------------- one episode
-def make_env(cfg: RunConfig, images: bool):
+def make_env(cfg: RunConfig, images: bool | str = False):
     import gymnasium as gym
 
     import maniskill_tidy  # noqa: F401  (registers the env)
@@ -89,42 +102,7 @@ def make_env(cfg: RunConfig, images: bool):
 
 def run_episode(env, team, index: int, seed: int, recorder=None) -> EpisodeRecord:
     """Play episode ``index`` of the env's split with ``team``; log it if ``recorder`` is given."""
-    u = env.unwrapped
-    start = time.perf_counter()
-    obs, info = env.reset(seed=seed, options={"episode": index})
-    central = getattr(team, "central", False)
-    channel = Channel(u.agent_names, central=central)
-    team.reset(PublicInfo.of(u, seed), channel, u if team.privileged else None)
-    if recorder is not None:
-        recorder.start(u, team, channel)
-    done, t, failed = False, 0, 0
-    while not done:
-        channel.new_step()
-        actions = team.act(obs, info)
-        obs, _, terminated, truncated, info = env.step(actions)
-        t += 1
-        failed += sum(1 for reason in info["failed"].values() if reason)
-        if recorder is not None:
-            recorder.log_step(t, obs, actions, info, channel, team.labels())
-        done = terminated or truncated
-    misplaced = set(u.misplaced)
-    record = EpisodeRecord(
-        episode=u.episode.id,
-        task_kind=u.episode.task.kind,
-        k=len(misplaced),
-        success=bool(info["success"]),
-        reasonable=int(info["n_reasonable"]),
-        found=len(misplaced & set(info["picked"])),
-        length=max(a.steps for a in u.agents),
-        comm=channel.total,
-        agents=len(u.agents),
-        seed=seed,
-        seconds=round(time.perf_counter() - start, 3),
-        failed_actions=failed,
-    )
-    if recorder is not None:
-        recorder.finish(record)
-    return record
+    return play_episode(env, team, index, seed, [recorder] if recorder is not None else [])
 
 
 # ---------------------------------------------------------------------- workers
@@ -178,13 +156,35 @@ def _record_failures(cfg: RunConfig, records: list[EpisodeRecord], indices: dict
 
 
 # ---------------------------------------------------------------------- a run
-def select(n_total: int, n: int | None) -> list[int]:
-    """``n`` episode indices spread evenly over the split (all of them when ``n`` is None)."""
-    if n is None or n >= n_total:
+PROTOCOLS = ("standard", "all")
+
+
+def episode_spec(value: str | int | None) -> str | int:
+    """``--episodes``: "standard", "all" or a positive number; anything else is refused."""
+    if value is None:
+        return "standard"
+    if isinstance(value, str) and value in PROTOCOLS:
+        return value
+    try:
+        n = int(value)
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"--episodes {value!r}: expected standard, all or a positive number"
+        ) from None
+    if n <= 0 or str(n) != str(value).strip():
+        raise ValueError(f"--episodes must be a positive whole number, got {value!r}")
+    return n
+
+
+def select(starts: list[int], spec: str | int | None) -> list[int]:
+    """Indices of the episodes to play, given each episode's start number (see the top)."""
+    spec = episode_spec(spec)
+    n_total = len(starts)
+    if spec == "standard":
+        return [i for i, s in enumerate(starts) if s == 0]
+    if spec == "all" or spec >= n_total:
         return list(range(n_total))
-    if n <= 0:
-        raise ValueError(f"--episodes must be positive, got {n}")
-    return sorted({int(i) for i in np.linspace(0, n_total, n, endpoint=False)})
+    return sorted({int(i) for i in np.linspace(0, n_total, spec, endpoint=False)})
 
 
 def read_records(path: Path) -> list[EpisodeRecord]:
@@ -230,7 +230,7 @@ def evaluate(
     # As the env does: the smallest setting that fits the team gives the starts (for SA, one
     # manipulator, that is Setting I's first start).
     episodes = EpisodeSet(cfg.dataset, cfg.split, cfg.task_type, None, members)
-    chosen = select(len(episodes), cfg.episodes)
+    chosen = select([e.start for e in episodes.episodes], cfg.episodes)
     ids = {episodes.get(i).id: i for i in chosen}
 
     directory = run_dir(out, cfg)
@@ -269,7 +269,7 @@ def evaluate(
     records = [r for r in read_records(jsonl) if r.episode in ids]
     done = {r.episode for r in records}
     todo = [i for i in chosen if episodes.get(i).id not in done]
-    images = images or team_cls.needs_images or record == "all"
+    images = images or record == "all"  # else the team's own observations
     started = time.perf_counter()
     bar = tqdm(
         total=len(chosen),
@@ -317,6 +317,9 @@ def evaluate(
 
     summary = {
         "policy": cfg.policy,
+        "protocol": cfg.episodes
+        if isinstance(cfg.episodes, str)
+        else f"{cfg.episodes} evenly spread episodes",
         "setting": cfg.setting,
         "split": cfg.split,
         "team": [list(c) for c in members],
@@ -327,12 +330,13 @@ def evaluate(
         "dataset_hash": episodes.dataset_hash,
         "code_version": versions[-1],
         "code_versions": versions,  # every version that ran part of this run (resumed runs)
+        "mixed_code_versions": len(versions) > 1,
         "seed": cfg.seed,
         "episodes": len(records),
         "metrics": summarize(records),
         "wall_seconds": run_info["wall_seconds"],  # summed over sessions that ran episodes
         "workers": workers,
-        "rendered_images": images,
+        "obs_mode": cfg.env_kwargs(images)["obs_mode"],
         "episode_seconds_mean": round(float(np.mean([r.seconds for r in records])), 3),
         "central_endpoint": CENTRAL if getattr(team_cls, "central", False) else None,
     }

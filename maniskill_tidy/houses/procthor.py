@@ -24,9 +24,25 @@ from maniskill_tidy.houses.schema import Door, Furniture, House, PlacedObject, R
 from maniskill_tidy.knowledge import FLOOR, ROOM_TYPES, load_catalog
 from maniskill_tidy.knowledge.catalog import load_assets
 
+MAX_OUTSIDE = 1.0  # metres an object's centre may lie outside every room (wall-mounted items)
+
 
 class ProcTHORImportError(ValueError):
     """A ProcTHOR house is malformed; the message names the house and the field."""
+
+
+def _num(d: dict, key: str, where: str, default: float | None = None) -> float:
+    """A numeric field; ``default`` when it is absent (never when it is null or not a number)."""
+    if not isinstance(d, dict):
+        raise ProcTHORImportError(f"{where}: expected an object, got {d!r}")
+    if key not in d and default is not None:
+        return default
+    try:
+        return float(d[key])
+    except KeyError:
+        raise ProcTHORImportError(f"{where}: missing {key!r}") from None
+    except (TypeError, ValueError):
+        raise ProcTHORImportError(f"{where}.{key}: expected a number, got {d[key]!r}") from None
 
 
 def _xz(p: dict, where: str) -> list[float]:
@@ -58,11 +74,34 @@ def _wall_key(wall_id: str) -> tuple[float, float, float, float] | None:
 
 def import_house(d: dict, house_id: str) -> House:
     """Convert one ProcTHOR house dict; raises ProcTHORImportError naming what is wrong."""
+    try:
+        return _import_house(d, house_id)
+    except ProcTHORImportError:
+        raise
+    except (KeyError, TypeError, IndexError, ValueError, AttributeError) as e:
+        # A shape this importer does not check field by field: still name the house.
+        raise ProcTHORImportError(
+            f"{house_id}: malformed house ({type(e).__name__}: {e})"
+        ) from None
+
+
+def _list(d: dict, key: str, where: str, required: bool = True) -> list:
+    value = _need(d, key, where) if required else (d.get(key) or [])
+    if not isinstance(value, list):
+        raise ProcTHORImportError(f"{where}: {key!r} must be a list, got {type(value).__name__}")
+    return value
+
+
+def _import_house(d: dict, house_id: str) -> House:
     where = house_id
+    if not isinstance(d, dict):
+        raise ProcTHORImportError(f"{where}: expected a house object, got {type(d).__name__}")
+    if not _list(d, "rooms", where):
+        raise ProcTHORImportError(f"{where}: rooms is empty; a house needs at least one room")
     rooms = []
-    for i, r in enumerate(_need(d, "rooms", where)):
+    for i, r in enumerate(_list(d, "rooms", where)):
         rw = f"{where}: rooms[{i}]"
-        poly = [_xz(p, f"{rw}.floorPolygon") for p in _need(r, "floorPolygon", rw)]
+        poly = [_xz(p, f"{rw}.floorPolygon") for p in _list(r, "floorPolygon", rw)]
         if len(poly) < 3:
             raise ProcTHORImportError(f"{rw}: floorPolygon needs at least 3 points")
         area2 = sum(
@@ -85,14 +124,14 @@ def import_house(d: dict, house_id: str) -> House:
 
     walls: dict[tuple, Wall] = {}
     wall_alias: dict[str, str] = {}
-    for i, w in enumerate(_need(d, "walls", where)):
+    for i, w in enumerate(_list(d, "walls", where)):
         ww = f"{where}: walls[{i}]"
         wid = _need(w, "id", ww)
         key = _wall_key(wid)
         if key is None:
             raise ProcTHORImportError(f"{ww}: id {wid!r} does not end in x0|z0|x1|z1")
-        pts = _need(w, "polygon", ww)
-        height = max(float(p.get("y", 0)) for p in pts) if pts else 2.5
+        pts = _list(w, "polygon", ww)
+        height = max(_num(p, "y", f"{ww}.polygon", 0.0) for p in pts) if pts else 2.5
         canon = tuple(sorted([key[:2], key[2:]]))
         room = _sid(w.get("roomId", ""))
         if canon not in walls:
@@ -111,18 +150,19 @@ def import_house(d: dict, house_id: str) -> House:
     by_id = {w.id: w for w in wall_list}
 
     doors = []
-    for i, dd in enumerate(d.get("doors", [])):
+    for i, dd in enumerate(_list(d, "doors", where, required=False)):
         dw = f"{where}: doors[{i}]"
         wall = by_id.get(wall_alias.get(_need(dd, "wall0", dw), ""))
         if wall is None:
             raise ProcTHORImportError(f"{dw}: wall0 {dd['wall0']!r} is not among the walls")
-        hole = _need(dd, "holePolygon", dw)
+        hole = _list(dd, "holePolygon", dw)
         if len(hole) < 2:
             raise ProcTHORImportError(f"{dw}: holePolygon needs two corners")
+        x0, x1 = (_num(hole[k], "x", f"{dw}.holePolygon[{k}]") for k in (0, 1))
         key = _wall_key(dd["wall0"])
         start, end = list(key[:2]), list(key[2:])
         length = math.dist(start, end) or 1.0
-        t = (float(hole[0]["x"]) + float(hole[1]["x"])) / 2 / length
+        t = (x0 + x1) / 2 / length
         center = [start[0] + t * (end[0] - start[0]), start[1] + t * (end[1] - start[1])]
         door_rooms = sorted({_sid(dd.get("room0", "")), _sid(dd.get("room1", ""))} & room_ids)
         doors.append(
@@ -131,8 +171,8 @@ def import_house(d: dict, house_id: str) -> House:
                 wall=wall.id,
                 rooms=door_rooms,
                 center=center,
-                width=abs(float(hole[1]["x"]) - float(hole[0]["x"])),
-                height=float(hole[1].get("y", 2.1)),
+                width=abs(x1 - x0),
+                height=_num(hole[1], "y", f"{dw}.holePolygon[1]", 2.1),
             )
         )
 
@@ -148,12 +188,21 @@ def import_house(d: dict, house_id: str) -> House:
         objects=[],
         room_spec=[r.type for r in rooms],
     )
-    for i, o in enumerate(d.get("objects", [])):
+    for i, o in enumerate(_list(d, "objects", where, required=False)):
         _import_object(house, o, f"{where}: objects[{i}]", parent=None)
     house.lights = room_lights(house)
     frame, free = compute_free(house)
     house.navgrid = frame.to_navgrid(free)
     return house
+
+
+def _outside(house: House, x: float, y: float) -> float:
+    """Metres from (x, y) to the nearest room's bounding box (0 inside one)."""
+    out = []
+    for r in house.rooms:
+        x0, y0, x1, y1 = r.bounds()
+        out.append(math.hypot(max(x0 - x, 0, x - x1), max(y0 - y, 0, y - y1)))
+    return min(out)
 
 
 def _room_of(house: House, x: float, y: float) -> str:
@@ -170,8 +219,16 @@ def _import_object(house: House, o: dict, where: str, parent: Furniture | None) 
     type_name, w, dpt, h = asset
     pos = _need(o, "position", where)
     x, y = _xz(pos, f"{where}.position")
-    z = float(pos.get("y", h / 2)) - h / 2
-    yaw = -math.radians(float((o.get("rotation") or {}).get("y", 0.0)))
+    z = _num(pos, "y", f"{where}.position", h / 2) - h / 2
+    rotation = o.get("rotation", {})
+    if rotation is None:
+        raise ProcTHORImportError(f"{where}.rotation: expected an object with y, got None")
+    yaw = -math.radians(_num(rotation, "y", f"{where}.rotation", 0.0))
+    if house.room_at(x, y) is None and _outside(house, x, y) > MAX_OUTSIDE:
+        raise ProcTHORImportError(
+            f"{where}.position: ({x:.2f}, {y:.2f}) lies {_outside(house, x, y):.1f} m outside "
+            "every room"
+        )
     room = _room_of(house, x, y)
     info = load_catalog().types.get(type_name)
     if info is not None and info.pickupable:
@@ -212,12 +269,18 @@ def _import_object(house: House, o: dict, where: str, parent: Furniture | None) 
         asset=asset_id,
     )
     house.furniture.append(f)
-    for j, child in enumerate(o.get("children") or []):
+    for j, child in enumerate(_list(o, "children", where, required=False)):
         _import_object(house, child, f"{where}.children[{j}]", parent=f)
 
 
-def read_procthor_houses(path: Path) -> Iterator[House]:
-    """Houses of a ProcTHOR ``.jsonl``/``.jsonl.gz`` file (one house per line), in order."""
+def read_procthor_houses(
+    path: Path, problems: list[str] | None = None, strict: bool = False
+) -> Iterator[House]:
+    """Houses of a ProcTHOR ``.jsonl``/``.jsonl.gz`` file (one house per line), in order.
+
+    House ``n`` (line n + 1) gets the id ``procthor_NNNNN``. A line that is not JSON or a house
+    that does not import is skipped and reported in ``problems`` (one line naming the house and
+    the field), or raised with ``strict``; a damaged gzip stream always raises."""
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such ProcTHOR house file")
@@ -228,12 +291,20 @@ def read_procthor_houses(path: Path) -> Iterator[House]:
                 if not line.strip():
                     continue
                 try:
-                    d = json.loads(line)
-                except json.JSONDecodeError as e:
-                    raise ProcTHORImportError(
-                        f"{path}: line {n + 1} is not valid JSON ({e}); is the file truncated?"
-                    ) from None
-                yield import_house(d, f"procthor_{n:05d}")
+                    try:
+                        d = json.loads(line)
+                    except json.JSONDecodeError as e:
+                        raise ProcTHORImportError(
+                            f"{path}: line {n + 1} is not valid JSON ({e}); is the file truncated?"
+                        ) from None
+                    house = import_house(d, f"procthor_{n:05d}")
+                except ProcTHORImportError as e:
+                    if strict:
+                        raise
+                    if problems is not None:
+                        problems.append(f"house {n} (line {n + 1}): {e}")
+                    continue
+                yield house
     except (EOFError, gzip.BadGzipFile, zlib.error) as e:
         raise ProcTHORImportError(
             f"{path}: the gzip stream is damaged or truncated ({e})"

@@ -1,10 +1,12 @@
-"""Objects and explored cells from one agent's RGB-D + segmentation frame.
+"""Objects and robots in one agent's frame, read off the semantic map's back-projected points.
 
 Approximation, stated everywhere results are shown: the segmentation is the renderer's ground
 truth (instance ids with their type), standing in for a trained detector such as the paper's
-Mask R-CNN. Positions are measured, not looked up: pixels are back-projected with the depth and
-the camera matrices. Where an object rests is read from the house's furniture spec (public
-information, like a floor plan): the surface under the measured position.
+Mask R-CNN. Positions are measured, not looked up: they come from the pixels that
+``SemanticMap.update`` back-projected with the depth and the camera matrices (the project's
+one back-projection path, ``SemanticMap.last_frame``). Where an object rests is read from the
+house's furniture spec (public information, like a floor plan): the surface under the measured
+position.
 """
 
 from __future__ import annotations
@@ -16,8 +18,8 @@ import numpy as np
 from maniskill_tidy.envs.actions import MIN_PIXELS
 from maniskill_tidy.houses.schema import House
 from maniskill_tidy.knowledge import FLOOR
+from maniskill_tidy.perception.semantic_map import FramePoints
 
-MAX_RANGE = 2.0  # metres: cells further away are seen too flatly to find small objects
 ON_FLOOR = 0.05  # an object whose lowest point is below this lies on the floor
 ON_SURFACE = 0.08  # vertical tolerance between an object's lowest point and a surface
 
@@ -30,55 +32,45 @@ class Detection:
     position: np.ndarray  # median of the object's back-projected pixels (x, y, z)
     bottom: float  # low percentile of their heights
     pixels: int
+    distance: float  # metres from the camera to ``position``
 
 
-def backproject(
-    depth: np.ndarray, intrinsics: np.ndarray, extrinsics: np.ndarray, mask: np.ndarray
-) -> np.ndarray:
-    """World points (N, 3) of the pixels in ``mask`` with a depth (OpenCV camera model)."""
-    v, u = np.nonzero(mask & (depth > 0))
-    z = depth[v, u].astype(np.float64)
-    fx, fy, cx, cy = intrinsics[0, 0], intrinsics[1, 1], intrinsics[0, 2], intrinsics[1, 2]
-    cam = np.stack([(u + 0.5 - cx) * z / fx, (v + 0.5 - cy) * z / fy, z], axis=1)
-    cam_to_world = np.linalg.inv(extrinsics)
-    return cam @ cam_to_world[:3, :3].T + cam_to_world[:3, 3]
-
-
-def detect_objects(obs: dict, instances: dict) -> list[Detection]:
-    seg, depth = obs["segmentation"], obs["depth"]
-    ids, counts = np.unique(seg, return_counts=True)
-    out = []
+def _groups(frame: FramePoints, instances: dict, kind: str):
+    """(instance, points) per instance of ``kind`` covering at least MIN_PIXELS pixels (a
+    point of a strided back-projection stands for stride^2 pixels)."""
+    ids, counts = np.unique(frame.seg, return_counts=True)
     for sid, n in zip(ids, counts, strict=True):
         inst = instances.get(int(sid))
-        if inst is None or inst.kind != "object" or n < MIN_PIXELS:
+        if inst is None or inst.kind != kind or n * frame.stride**2 < MIN_PIXELS:
             continue
-        pts = backproject(depth, obs["intrinsics"], obs["extrinsics"], seg == sid)
-        if len(pts) == 0:
-            continue
+        yield int(sid), inst, frame.points[frame.seg == sid]
+
+
+def detect_objects(frame: FramePoints, instances: dict) -> list[Detection]:
+    """Every object covering at least MIN_PIXELS pixels (with a depth) of the frame."""
+    out = []
+    for sid, inst, pts in _groups(frame, instances, "object"):
+        position = np.median(pts, axis=0)
         out.append(
             Detection(
-                int(sid),
+                sid,
                 inst.id,
                 inst.type,
-                np.median(pts, axis=0),
+                position,
                 float(np.percentile(pts[:, 2], 5)),
-                int(n),
+                len(pts) * frame.stride**2,
+                float(np.linalg.norm(position - frame.camera)),
             )
         )
     return out
 
 
-def explored_cells(obs: dict, house: House, stride: int = 4) -> set[tuple[int, int]]:
-    """Grid cells with a back-projected point (floor, furniture or wall) within range."""
-    depth = obs["depth"][::stride, ::stride]
-    mask = (depth > 0) & (depth < MAX_RANGE)
-    k = obs["intrinsics"].copy()
-    k[:2] /= stride
-    pts = backproject(depth, k, obs["extrinsics"], mask)
-    nav = house.navgrid
-    rows = np.floor((pts[:, 1] - nav.origin[1]) / nav.cell).astype(int)
-    cols = np.floor((pts[:, 0] - nav.origin[0]) / nav.cell).astype(int)
-    return set(zip(rows.tolist(), cols.tolist(), strict=True))
+def seen_robots(frame: FramePoints, instances: dict) -> dict[str, np.ndarray]:
+    """Robot name -> (x, y) of the robots in view (the middle of their visible surface)."""
+    return {
+        inst.id: np.median(pts[:, :2], axis=0)
+        for _, inst, pts in _groups(frame, instances, "robot")
+    }
 
 
 @dataclass(frozen=True)

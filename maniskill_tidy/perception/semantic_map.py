@@ -22,7 +22,8 @@ its integration plus the surface extraction a top-down read needs cost several t
 per-frame budget (``python -m maniskill_tidy.bench --only map`` times both on the same frames).
 What a TSDF does give, free-space carving, matters for objects that move; the map gets it for
 them by a visibility check: a stored object voxel that the current frame sees *through*
-(its depth in the camera lies in front of the measured depth) is cleared.
+(its depth in the camera lies ``SEE_THROUGH`` in front of the measured depth), or whose pixel
+shows something else at the voxel's own depth (the table a flat object lay on), is cleared.
 
 Labels come from the ground-truth segmentation (instance id -> type), standing in for a
 trained detector, as everywhere in this project's perception. Robots (dynamic obstacles)
@@ -123,6 +124,24 @@ def label_table(instances: dict, categories: tuple[str, ...]) -> np.ndarray:
     return table
 
 
+@dataclass(frozen=True)
+class FramePoints:
+    """The last frame's back-projected pixels: world points, their segmentation ids and the
+    camera's position. Detections and seen robots are read off these
+    (``perception/detections.py``): the project's one back-projection path is the map's."""
+
+    points: np.ndarray  # (N, 3)
+    seg: np.ndarray  # (N,) segmentation id of each point's pixel
+    camera: np.ndarray  # (3,) world position of the camera
+    stride: int = 1  # pixel stride of the back-projection: a point stands for stride^2 pixels
+
+
+def camera_position(extrinsics) -> np.ndarray:
+    """The camera's world position from its world-to-camera matrix: -R^T t."""
+    ext = np.asarray(extrinsics, dtype=np.float64)
+    return -ext[:3, :3].T @ ext[:3, 3]
+
+
 class SemanticMap:
     """One agent's fused map of one house (create a new one per house)."""
 
@@ -158,6 +177,7 @@ class SemanticMap:
             int(math.ceil(OBSTACLE_BAND[1] / self.config.cell)),
         )
         self.frames = 0
+        self.last_frame = FramePoints(np.zeros((0, 3)), np.zeros(0, np.int64), np.zeros(3))
 
     @property
     def channels(self) -> int:
@@ -185,9 +205,19 @@ class SemanticMap:
         if held:
             label = np.where(seg == held, UNKNOWN, label)
         self._mark_visible_floor(depth, obs["intrinsics"], obs["extrinsics"], obs.get("pose"))
-        depth = np.where(label == UNKNOWN, np.float32(0), depth)  # robots, held object, empty
-        cleared = self._clear_seen_through(depth, obs["intrinsics"], obs["extrinsics"])
+        # Every pixel with a depth is back-projected once; robots, the held object and empty
+        # space (label UNKNOWN) stay out of the map but are kept in ``last_frame``.
         points, point_labels, pixels = self._backproject(depth, label, obs)
+        self.last_frame = FramePoints(
+            points,
+            seg[pixels[:, 0], pixels[:, 1]],
+            camera_position(obs["extrinsics"]),
+            self.config.stride,
+        )
+        mapped = point_labels != UNKNOWN
+        points, point_labels, pixels = points[mapped], point_labels[mapped], pixels[mapped]
+        depth = np.where(label == UNKNOWN, np.float32(0), depth)
+        cleared = self._clear_seen_through(depth, label, obs["intrinsics"], obs["extrinsics"])
         extra, extra_labels = densify(
             points, point_labels, pixels, seg, depth, self.config.cell, self.config.stride
         )
@@ -250,12 +280,12 @@ class SemanticMap:
         rows; this fills them without counting floor hidden behind furniture."""
         ext = np.asarray(extrinsics, dtype=np.float64)
         k = np.asarray(intrinsics, dtype=np.float64)
-        camera = -ext[:3, :3].T @ ext[:3, 3]
+        camera = camera_position(ext)
         reach = self.config.max_depth
         r, c = self._view_window(camera, ext, k, depth.shape, reach)
         xy = self.frame.centres(r, c)
         cam = np.column_stack([xy, np.zeros(len(xy))]) @ ext[:3, :3].T + ext[:3, 3]
-        u, v, ok = _pixels(cam, k, depth.shape)
+        u, v, ok = project_points(cam, k, depth.shape)
         ok &= cam[:, 2] <= reach
         d = depth[v[ok], u[ok]].astype(np.float64)
         ray = np.column_stack(
@@ -299,9 +329,9 @@ class SemanticMap:
         keep = (r < self.frame.shape[0]) & (c < self.frame.shape[1])
         return r[keep], c[keep]
 
-    def _clear_seen_through(self, depth, intrinsics, extrinsics) -> np.ndarray:
-        """Clear stored object voxels the camera now sees past (the object has moved); returns
-        the flat column indices that changed."""
+    def _clear_seen_through(self, depth, label, intrinsics, extrinsics) -> np.ndarray:
+        """Clear stored object voxels the camera now sees past, or sees something else right at
+        (the object has moved); returns the flat column indices that changed."""
         flat = self._movable_voxels
         if len(flat) == 0:
             return np.zeros(0, dtype=np.int64)
@@ -311,10 +341,15 @@ class SemanticMap:
         world = np.column_stack([xy, (z + 0.5) * self.config.cell])
         ext = np.asarray(extrinsics, dtype=np.float64)
         cam = world @ ext[:3, :3].T + ext[:3, 3]
-        u, v, seen = _pixels(cam, np.asarray(intrinsics, dtype=np.float64), depth.shape)
+        u, v, seen = project_points(cam, np.asarray(intrinsics, dtype=np.float64), depth.shape)
         measured = np.zeros(len(cam), dtype=np.float64)
         measured[seen] = depth[v[seen], u[seen]]
-        gone = seen & (measured > 0) & (cam[:, 2] < measured - SEE_THROUGH)
+        other = np.zeros(len(cam), dtype=bool)
+        other[seen] = label[v[seen], u[seen]] != self.voxels.reshape(-1)[flat[seen]]
+        # Not hidden behind something nearer, and either seen through by SEE_THROUGH or seen
+        # to be another thing at its own depth (the table a flat object lay on).
+        visible = seen & (measured > 0) & (measured > cam[:, 2] - self.config.cell)
+        gone = visible & ((cam[:, 2] < measured - SEE_THROUGH) | other)
         self.voxels.reshape(-1)[flat[gone]] = UNKNOWN
         self._movable_voxels = flat[~gone]
         return flat[gone] // self.layers
@@ -420,7 +455,7 @@ def densify(
     return points[ai] + t[:, None] * (points[bi] - points[ai]), labels[ai]
 
 
-def _pixels(cam: np.ndarray, k: np.ndarray, shape: tuple[int, int]):
+def project_points(cam: np.ndarray, k: np.ndarray, shape: tuple[int, int]):
     """Pixel (u, v) of camera-frame points and whether it lies in the image, in front."""
     h, w = shape
     ahead = cam[:, 2] > 1e-6

@@ -3,7 +3,7 @@ their cameras, with the communication patterns of the paper's baselines."""
 
 from __future__ import annotations
 
-from maniskill_tidy.policies.base import Team
+from maniskill_tidy.policies.base import AnyTeam
 from maniskill_tidy.policies.expert import ExpertTeam
 from maniskill_tidy.policies.heuristic import (
     BroadcastTeam,
@@ -14,7 +14,7 @@ from maniskill_tidy.policies.heuristic import (
 )
 from maniskill_tidy.policies.random_team import RandomTeam
 
-POLICIES: dict[str, type[Team]] = {
+POLICIES: dict[str, type[AnyTeam]] = {
     cls.name: cls
     for cls in (
         ExpertTeam,
@@ -28,7 +28,7 @@ POLICIES: dict[str, type[Team]] = {
 }
 
 
-def make_team(name: str) -> Team:
+def make_team(name: str) -> AnyTeam:
     if name not in POLICIES:
         raise ValueError(f"unknown policy {name!r}; choose one of {sorted(POLICIES)}")
     return POLICIES[name]()

@@ -1,12 +1,27 @@
-"""The policy interface every team implements, and what a team is told at the start.
+"""The team interface: decentralised execution is the shape of the API.
 
-A team acts for all its agents: ``reset`` with the task's public information (and, for a
-privileged team only, the env itself), then ``act`` once per env step on the per-agent
-observations. Teams talk only through the :class:`~maniskill_tidy.policies.channel.Channel`
-they are given, so the runner can count what they send.
+A camera-only team is a factory of agents. For every episode the runner
+(``eval/episode.py``) asks it for one :class:`Agent` per robot, and a :class:`CentralNode` if
+the team has one, each bound to its own :class:`~maniskill_tidy.policies.channel.Outbox`.
+Every step the runner then
 
-Besides actions a team may report, per agent, the sub-task and sub-goal it is pursuing (the
-paper's hierarchical decision, Section 5.4); the expert's reports are the demonstrations, and
+1. gives each active agent its :class:`AgentView`: its own observation and the outcome of its
+   own last action, nothing else (``observe``);
+2. runs ``Team.rounds`` communication rounds: in each, every agent and then the central node
+   may send vectors (``send``), and what is sent in a round can be read from the next one on;
+3. asks each agent for its action, with its inbox (``act``).
+
+An agent is called with nothing but its view, its inbox and the public information of
+:class:`PublicInfo`; a central node sees only what is sent to it. Agents of one team may share
+code, read-only public data (the floor plan, the placement knowledge) and weights, not state:
+a teammate's position, parking spot or held object reaches an agent only as a message, and is
+counted there. Success counters never reach a camera-only team.
+
+Only privileged teams (the expert) see the simulator: a :class:`PrivilegedTeam` is handed the
+env and acts for all its agents at once; every result it produces is marked privileged.
+
+Besides actions, an agent may report the sub-task and sub-goal it is pursuing (the paper's
+hierarchical decision, Section 5.4); the expert's reports are the demonstrations, and
 recordings show them for every team.
 """
 
@@ -17,18 +32,24 @@ from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
+import numpy as np
+
 from maniskill_tidy.envs.actions import Action, Targeted
 from maniskill_tidy.houses.schema import House
-from maniskill_tidy.policies.channel import Channel
+from maniskill_tidy.policies.channel import Message, Outbox
 from maniskill_tidy.tasks.teams import Capability
 
 EXPLORE, PLACE = "Explore", "Place"
 OPERATIONS = ("NoAction", "PickUp", "PutDown", "Drop")
+# What one agent's observation may hold (``AgentView.obs``); images only in image obs modes.
+OBSERVATION_KEYS = frozenset(
+    {"rgb", "depth", "segmentation", "pose", "intrinsics", "extrinsics", "capability", "held"}
+)
 
 
 @dataclass(frozen=True)
 class PublicInfo:
-    """What every team knows at the start: the floor plan, not where any object lies."""
+    """What every agent knows at the start: the floor plan, not where any object lies."""
 
     house: House  # rooms, walls, doors, furniture and navigation grid; ``objects`` is empty
     agents: list[str]
@@ -49,6 +70,19 @@ class PublicInfo:
             seed=seed,
             instances=dict(env.instances),
         )
+
+    def capability(self, name: str) -> Capability:
+        return self.capabilities[self.agents.index(name)]
+
+
+@dataclass(frozen=True)
+class AgentView:
+    """One agent's input in one step: its own observation and its own last action's outcome."""
+
+    name: str
+    step: int  # env steps taken so far in this episode
+    obs: dict[str, np.ndarray]  # keys from OBSERVATION_KEYS
+    failed: str = ""  # why its last action failed ("" if it did not)
 
 
 @dataclass(frozen=True)
@@ -78,21 +112,86 @@ class SubGoal:
 
 
 AgentAction = int | Action | Targeted
+Label = tuple[SubTask, SubGoal]
+
+
+class Agent(ABC):
+    """One robot's policy. Made per episode by its team; holds only its own state."""
+
+    def __init__(self, name: str, public: PublicInfo, outbox: Outbox) -> None:
+        self.name, self.public, self.outbox = name, public, outbox
+
+    @abstractmethod
+    def observe(self, view: AgentView) -> None:
+        """Take in this step's own observation (perception, memory)."""
+
+    def send(self, round: int, inbox: list[Message]) -> None:  # noqa: B027  (optional hook)
+        """Communication round ``round``: send through ``self.outbox`` (default: nothing)."""
+
+    @abstractmethod
+    def act(self, inbox: list[Message]) -> AgentAction:
+        """This step's action, given every message received this step."""
+
+    def label(self) -> Label | None:
+        """The sub-task and sub-goal behind the last action (None if the agent has none)."""
+        return None
+
+
+class CentralNode(ABC):
+    """A team's central planner: it sees only the messages sent to it."""
+
+    def __init__(self, public: PublicInfo, outbox: Outbox) -> None:
+        self.public, self.outbox = public, outbox
+
+    @abstractmethod
+    def send(self, round: int, inbox: list[Message]) -> None:
+        """Communication round ``round``: read the uploads, send through ``self.outbox``."""
 
 
 class Team(ABC):
+    """A team of camera-only agents (the decentralised interface above)."""
+
     name: ClassVar[str]
-    privileged: ClassVar[bool] = False  # reads the simulator's state (the expert)
+    privileged: ClassVar[bool] = False
     needs_images: ClassVar[bool] = True  # False: the env may skip rendering (obs_mode "none")
+    observations: ClassVar[str] = "rgb+depth+segmentation"  # the env obs_mode it reads
+    communication: ClassVar[str] = "none"  # what the leaderboard calls its pattern
+    central: ClassVar[bool] = False  # the channel gets a CENTRAL endpoint
+    rounds: ClassVar[int] = 1  # communication rounds per step
+    team_override: ClassVar[list | None] = None  # plays with its own team (SA: one manipulator)
+    perception: ClassVar[str] = ""  # what stands in for the paper's perception, for the results
 
     @abstractmethod
-    def reset(self, info: PublicInfo, channel: Channel, env: Any | None = None) -> None:
-        """Start an episode; ``env`` (the unwrapped env) is given to privileged teams only."""
+    def make_agent(self, name: str, public: PublicInfo, outbox: Outbox) -> Agent:
+        """A fresh agent for one episode."""
+
+    def make_central(self, public: PublicInfo, outbox: Outbox) -> CentralNode | None:
+        return None
+
+
+class PrivilegedTeam(ABC):
+    """A team that reads the simulator (the expert): one controller for all agents."""
+
+    name: ClassVar[str]
+    privileged: ClassVar[bool] = True
+    needs_images: ClassVar[bool] = False
+    observations: ClassVar[str] = "none"
+    communication: ClassVar[str] = "none"
+    central: ClassVar[bool] = False
+    team_override: ClassVar[list | None] = None
+    perception: ClassVar[str] = "privileged: reads the simulator's state"
 
     @abstractmethod
-    def act(self, obs: dict[str, dict], info: dict) -> dict[str, AgentAction]:
+    def reset(self, public: PublicInfo, env: Any) -> None:
+        """Start an episode; ``env`` is the unwrapped env."""
+
+    @abstractmethod
+    def act(self, info: dict) -> dict[str, AgentAction]:
         """One action per agent that has not stopped; ``info`` is the env's last info."""
 
-    def labels(self) -> dict[str, tuple[SubTask, SubGoal]]:
+    def labels(self) -> dict[str, Label]:
         """Per agent, the sub-task and sub-goal behind the last actions (empty if none)."""
         return {}
+
+
+AnyTeam = Team | PrivilegedTeam

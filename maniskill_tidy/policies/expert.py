@@ -14,7 +14,6 @@ demonstrations for imitation learning (``training/demonstrations.py``).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -29,11 +28,17 @@ from maniskill_tidy.envs.actions import (
     move_target,
 )
 from maniskill_tidy.envs.robots import robot_kind
-from maniskill_tidy.policies.base import EXPLORE, PLACE, PublicInfo, SubGoal, SubTask, Team
-from maniskill_tidy.policies.channel import Channel
+from maniskill_tidy.policies.base import (
+    EXPLORE,
+    PLACE,
+    Label,
+    PrivilegedTeam,
+    PublicInfo,
+    SubTask,
+)
 from maniskill_tidy.policies.navigation import Cell, GridPlanner, move_towards, subgoal
 from maniskill_tidy.policies.viewpoints import Viewpoint, viewpoints
-from maniskill_tidy.policies.walker import Leg, NoViewpoint, Walker, wait_action
+from maniskill_tidy.policies.walker import Job, Leg, NoViewpoint, Walker, wait_action
 
 MAX_CANDIDATES = 24  # viewpoints considered per target
 RETRIES = 2  # rounds of viewpoints tried for an object before giving it up
@@ -42,36 +47,25 @@ RESERVED = 4  # cells of a manipulator's path ahead that scouts clear
 HORIZONS = range(HORIZON_RANGE[0], HORIZON_RANGE[1] + 1, LOOK)
 
 
-@dataclass
-class Job:
-    kind: str  # "pick", "place", "look" or "park"
-    target: str  # object id, "furniture/surface", object id, ""
-    leg: Leg
-    subtask: SubTask
-    issued: bool = False  # the operation was sent last step; its outcome is due
-
-
-class ExpertTeam(Team):
+class ExpertTeam(PrivilegedTeam):
     name = "expert"
-    privileged = True
-    needs_images = False
 
-    def reset(self, info: PublicInfo, channel: Channel, env: Any | None = None) -> None:
+    def reset(self, public: PublicInfo, env: Any) -> None:
         if env is None:
             raise ValueError("the expert is privileged: reset() needs the unwrapped env")
         self.env = env
         self.planner = GridPlanner(env.house)
         self.walker = Walker(self.planner)
         self.task = {m.object: m for m in env.episode.task.misplaced}
-        self.jobs: dict[str, Job | None] = {a: None for a in info.agents}
+        self.jobs: dict[str, Job | None] = {a: None for a in public.agents}
         self.attempts: dict[str, int] = {}  # rounds of viewpoints that failed, per object
         self.seen: set[str] = set()
-        self._labels: dict[str, tuple[SubTask, SubGoal]] = {}
+        self._labels: dict[str, Label] = {}
         self._surface_queue: dict[str, list[tuple[str, list[Viewpoint]]]] = {}
         self._trapped: set[Cell] = set()  # scouts that could not step aside last step
 
     # ------------------------------------------------------------------ acting
-    def act(self, obs: dict[str, dict], info: dict) -> dict[str, Any]:
+    def act(self, info: dict) -> dict[str, Any]:
         """Manipulators plan first and ignore scouts in their way; a scout standing on the next
         cells of a manipulator's path steps aside (this is what breaks corridor deadlocks)."""
         actions = {}
@@ -125,13 +119,13 @@ class ExpertTeam(Team):
             self._entering.add(path[1])
         return action
 
-    def labels(self) -> dict[str, tuple[SubTask, SubGoal]]:
+    def labels(self) -> dict[str, Label]:
         return self._labels
 
     def _act_one(self, agent: AgentState, info: dict) -> Any:
         job = self.jobs[agent.name]
         if job is not None and job.issued:
-            job = self._outcome(agent, job, info["failed"].get(agent.name, ""))
+            job = self._outcome(agent, job)
         for _ in range(4):  # a finished or impossible job hands over to the next one
             if job is None:
                 job = self._allocate(agent)
@@ -140,7 +134,7 @@ class ExpertTeam(Team):
             others -= {agent.cell}
             stopped = {a.cell for a in self.env.agents if a.stopped}
             if job.kind == "park" and agent.cell == job.leg.candidates[0].cell:
-                self._label(agent, job)
+                self._labels[agent.name] = job.label(agent)
                 return Action.Stop
             try:
                 action = self.walker.step(agent, job.leg, others, stopped)
@@ -151,7 +145,7 @@ class ExpertTeam(Team):
                     self.seen.add(job.target)
                 job = self._next_place(agent, job) if job.kind == "place" else None
                 continue
-            self._label(agent, job)
+            self._labels[agent.name] = job.label(agent)
             if action in (Action.MoveAhead, Action.MoveLeft, Action.MoveRight):
                 nxt = move_target(agent, action)
                 if any(a.cell == nxt for a in self.env.agents if a is not agent):
@@ -172,15 +166,13 @@ class ExpertTeam(Team):
         op = Action.PickUp if job.kind == "pick" else Action.PutDown
         return Targeted(op, job.target)
 
-    def _outcome(self, agent: AgentState, job: Job, failure: str) -> Job | None:
-        job.issued = False
-        if job.kind == "pick" and agent.held == job.target:
+    def _outcome(self, agent: AgentState, job: Job) -> Job | None:
+        if not job.succeeded(agent):
+            return job  # try the next viewpoint
+        if job.kind == "pick":
             self.seen.add(job.target)
             return self._place_job(agent)
-        if job.kind == "place" and agent.held is None:
-            return None
-        job.leg.give_up_goal()  # try the next viewpoint
-        return job
+        return None
 
     # ------------------------------------------------------------------ allocation
     def _allocate(self, agent: AgentState) -> Job:
@@ -298,18 +290,4 @@ class ExpertTeam(Team):
         f = self.env.hs.furniture[fid]
         return SubTask(
             PLACE, m.type, f.surface(sname).receptacle_type, self.env.hs.room_type[f.room]
-        )
-
-    def _label(self, agent: AgentState, job: Job) -> None:
-        leg = job.leg
-        goal = leg.goal or leg.candidates[0]  # None after giving up on a blocked goal
-        path = list(leg.path) if leg.path else [agent.cell, goal.cell]
-        if path[0] != agent.cell:  # the walker already stepped past this cell
-            path = [agent.cell, *path]
-        if agent.cell == goal.cell:
-            path = [agent.cell]
-        ope = {"pick": "PickUp", "place": "PutDown"}.get(job.kind, "NoAction")
-        self._labels[agent.name] = (
-            job.subtask,
-            subgoal(agent, path, goal.rotation, ope, job.kind == "park"),
         )

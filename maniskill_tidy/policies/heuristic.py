@@ -1,49 +1,78 @@
-"""Heuristic teams that see only through their cameras, with the paper's communication patterns.
+"""Heuristic teams that see only through their own cameras, with the paper's communication patterns.
 
-Every agent keeps a memory: the grid cells its camera has covered and the objects it has
-detected (``perception/detections.py``: ground-truth segmentation, measured positions), each
-judged misplaced or not with the placement knowledge D. Navigation-only agents explore: they walk
-to the nearest free cell nobody they know of has seen. A manipulator tidies what it knows of
-(nearest misplaced object first, then the nearest seen surface where D holds) and explores
-otherwise. What an agent knows beyond its own camera comes only through the channel:
+Every agent keeps its own memory and nothing else: its semantic map
+(``perception/semantic_map.py``, fed by its own RGB-D + segmentation), the cells it has
+searched (seen within ``COVER_RANGE``), the objects it has detected (read off the map's
+back-projected points, ``perception/detections.py``), each judged misplaced or not with the
+placement knowledge D and the public floor plan, the teammates it sees or hears from, and what
+others reported. Navigation-only agents search: they walk to the nearest reachable cell not
+yet searched (as far as they know), keeping away from teammates they know of; once every cell
+is searched they inspect the floor plan's surfaces their camera can see into or onto
+(``INSPECT_HEIGHTS``) one by one from a viewpoint facing each, then stop. A manipulator
+tidies what it knows of (the nearest misplaced object; then the nearest surface of the floor
+plan where D holds) and searches otherwise. What an agent knows beyond its own camera comes
+only through the channel (``policies/messages.py``: state 10 + map crop 400 values):
 
-- ``none``: no messages (the scouts' findings are lost);
-- ``detection``: an agent broadcasts its state, map crop and detections only in steps where it
-  sees a misplaced object (the paper's CondComm.);
+- ``none``: no messages; a teammate is known only when seen, and a move blocked by an unseen
+  one is a failed action the agent handles (it marks the cell occupied for a few steps and
+  sometimes steps aside, so that two robots facing each other do not wait forever);
+- ``detection``: an agent broadcasts its state and map crop only in steps where it sees a
+  misplaced object (the paper's CondComm.);
 - ``broadcast``: every agent broadcasts them every step (BroadComm.);
-- ``central``: every agent sends them to a central node, which sends each agent the object to
-  fetch (CentralComm.).
-
-Message contents, counted in dimensions: state = capability (3) + pose (3) + sub-task (kind,
-object instance, receptacle type, room type: 4) = 10, as in the paper; map = the 20 x 20 crop of
-the explored grid around the sender = 400; detections = 6 per misplaced object known (instance,
-type, x, y, z, 1); an assignment from the central node = 6.
+- ``central``: every agent uploads them to a central node (``policies/central.py``), which
+  sends each agent an assignment (6 values: what to fetch or where to search; CentralComm.).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Any
+from dataclasses import dataclass
 
 import numpy as np
 
-from maniskill_tidy.envs.actions import Action, AgentState, Targeted
+from maniskill_tidy.envs.actions import Action, AgentState, Targeted, move_target
 from maniskill_tidy.envs.robots import robot_kind
-from maniskill_tidy.knowledge import FLOOR, ROOM_TYPES, load_catalog, load_placement
+from maniskill_tidy.knowledge import FLOOR, load_placement
 from maniskill_tidy.perception.detections import (
     detect_objects,
-    explored_cells,
     resting_place,
+    seen_robots,
     surface_table,
 )
-from maniskill_tidy.policies.base import EXPLORE, PLACE, PublicInfo, SubGoal, SubTask, Team
-from maniskill_tidy.policies.channel import CENTRAL, Channel
-from maniskill_tidy.policies.navigation import Cell, GridPlanner, subgoal
+from maniskill_tidy.perception.semantic_map import MapConfig, SemanticMap
+from maniskill_tidy.policies.base import (
+    EXPLORE,
+    PLACE,
+    Agent,
+    AgentView,
+    Label,
+    PublicInfo,
+    SubTask,
+    Team,
+)
+from maniskill_tidy.policies.channel import CENTRAL, Message, Outbox
+from maniskill_tidy.policies.messages import (
+    EXPLORE_AREA,
+    FETCH,
+    decode_assignment,
+    decode_crop,
+    decode_state,
+    encode_crop,
+    encode_state,
+)
+from maniskill_tidy.policies.navigation import Cell, GridPlanner
 from maniskill_tidy.policies.viewpoints import Viewpoint, viewpoints
-from maniskill_tidy.policies.walker import Leg, NoViewpoint, Walker
+from maniskill_tidy.policies.walker import Job, Leg, NoViewpoint, Walker, wait_action
 
-CROP = 20  # cells of the map crop sent to others
-EXPLORE_HORIZON = {True: 30, False: 0}  # high cameras look down a little while exploring
+MAP_STRIDE = 2  # every other pixel: half the map's cost (``bench --only map``), same cells
+COVER_RANGE = 2.0  # metres: a cell counts as searched once seen this close (small objects)
+BLOCK_STEPS = 3  # steps a cell where a robot blocked a move counts as occupied
+TEAMMATE_STEPS = 2  # steps a teammate's seen or reported cell counts as occupied
+SAME_OBJECT = 0.6  # metres: a report this close to a known object of its type is that object
+EXPLORE_HORIZON = {True: 30, False: 0}  # high cameras look down a little while searching
+REPORT_HEIGHT = 0.4  # metres: where to look for an object whose height a report does not give
+# Surfaces worth a look once searching ends, by camera: a low camera sees into low shelves and
+# under tables but not onto tops; a high one sees tops up to a metre.
+INSPECT_HEIGHTS = {False: (0.0, 0.5), True: (0.25, 1.0)}  # metres, by "camera above 0.5 m"
 
 
 @dataclass
@@ -56,55 +85,83 @@ class Known:
 
 
 @dataclass
-class Memory:
-    explored: np.ndarray  # bool grid
-    objects: dict[str, Known] = field(default_factory=dict)
-    done: set[str] = field(default_factory=set)  # objects tidied or lost: not worth a trip
-    claims: dict[str, str] = field(default_factory=dict)  # object -> manipulator going for it
-    poses: dict[str, Cell] = field(default_factory=dict)  # other agents' last known cells
+class Report:
+    """A misplaced object another endpoint told of: its type and where, to 0.25 m."""
+
+    type: str
+    xy: tuple[float, float]
 
 
-class HeuristicTeam(Team):
-    name = "heuristic"
-    team_override: list | None = None
-    communication = "none"
-    perception = "ground-truth segmentation + depth back-projection"
-
-    def __init__(self) -> None:
-        self.central = self.communication == "central"
-
-    def reset(self, info: PublicInfo, channel: Channel, env: Any | None = None) -> None:
-        self.info, self.channel, self.house = info, channel, info.house
-        self.planner = GridPlanner(self.house)
+class HeuristicAgent(Agent):
+    def __init__(self, name: str, public: PublicInfo, outbox: Outbox, communication: str) -> None:
+        super().__init__(name, public, outbox)
+        self.communication = communication
+        house = self.house = public.house
+        self.capability = public.capability(name)
+        self.manipulator = bool(self.capability[1])
+        self.height = robot_kind(self.capability).camera_height
+        self.planner = GridPlanner(house)
         self.walker = Walker(self.planner)
-        self.knowledge, self.catalog = load_placement(), load_catalog()
-        self.room_type = {r.id: r.type for r in self.house.rooms}
-        shape = tuple(self.house.navgrid.shape)
-        self.memory = {a: Memory(np.zeros(shape, bool)) for a in info.agents}
-        self.jobs: dict[str, tuple[str, str, Leg, SubTask] | None] = {a: None for a in info.agents}
-        self.pending: dict[str, tuple[str, str] | None] = {a: None for a in info.agents}
-        self.instances = info.instances
-        self.seg_of = {inst.id: sid for sid, inst in info.instances.items()}
-        self.furniture = self.house.furniture_by_id()
-        self.surfaces = surface_table(self.house)
-        self._states: dict[str, AgentState] = {}
-        self._stopped_cells: list[Cell] = []
-        self._bad_surfaces: dict[str, set[str]] = {}
-        self._assigned: dict[str, str | None] = {}
-        self._labels: dict[str, tuple[SubTask, SubGoal]] = {}
-        self.stopped: set[str] = set()
+        self.map = SemanticMap(house, public.instances, MapConfig(stride=MAP_STRIDE))
+        self.knowledge = load_placement()
+        self.room_type = {r.id: r.type for r in house.rooms}
+        self.surfaces = surface_table(house)
+        self.furniture = house.furniture_by_id()
+        self.covered = np.zeros(tuple(house.navgrid.shape), dtype=bool)
+        self.objects: dict[str, Known] = {}
+        self.reports: list[Report] = []
+        self.dismissed: list[Report] = []  # reports checked and found stale: not again
+        self.done: set[str] = set()  # objects tidied or given up: not worth a trip
+        self.bad_surfaces: set[str] = set()
+        self.inspected: set[str] = set()  # surfaces looked at from a viewpoint facing them
+        self.teammates: dict[str, tuple[Cell, int]] = {}  # name -> (cell, step last known)
+        self.claims: dict[str, tuple[str, Cell]] = {}  # manipulator -> (object type, cell)
+        self.parked: dict[str, Cell] = {}  # teammates that said they go to stop there
+        self.blocked: dict[Cell, int] = {}  # cell -> last step it counts as occupied
+        self.assignment: tuple[int, str, np.ndarray] | None = None
+        self.job: Job | None = None
+        self.state = AgentState(name, self.capability, (0, 0), 0)
+        self.rng = np.random.default_rng([public.seed, public.agents.index(name), 7])
+        self.t = 0
+        self.sees_misplaced = False
+        self._label: Label | None = None
+        self._sidestep: Action | None = None
+        self._looking: Report | None = None  # the report a "look" job goes to check
 
     # ------------------------------------------------------------------ perception
-    def _perceive(self, name: str, o: dict) -> bool:
-        """Update ``name``'s memory from its frame; True if a misplaced object is in view."""
-        mem = self.memory[name]
-        rows, cols = mem.explored.shape
-        for r, c in explored_cells(o, self.house):
-            if 0 <= r < rows and 0 <= c < cols:
-                mem.explored[r, c] = True
-        sees_misplaced = False
-        for d in detect_objects(o, self.instances):
-            if d.seg_id == int(o["held"]):
+    def observe(self, view: AgentView) -> None:
+        self.t = view.step
+        o = view.obs
+        s = self.state
+        s.cell = self.house.navgrid.cell_of(float(o["pose"][0]), float(o["pose"][1]))
+        s.rotation = int(round(float(o["pose"][2]))) % 360
+        s.horizon = camera_pitch(o["extrinsics"])
+        seg = int(o["held"])
+        s.held = self.public.instances[seg].id if seg else None
+        if view.failed:
+            self._failed(view.failed)
+        if self.job is not None and self.job.issued:
+            if self.job.succeeded(s):
+                if self.job.kind == "pick":
+                    self.done.add(self.job.target)
+                self.job = None
+        self.covered[s.cell] = True
+        self.sees_misplaced = False
+        if "depth" in o and "segmentation" in o:
+            self._perceive(o)
+
+    def _perceive(self, o: dict) -> None:
+        self.map.update(o)
+        frame = self.map.last_frame
+        nav = self.house.navgrid
+        near = frame.points[np.hypot(*(frame.points[:, :2] - frame.camera[:2]).T) < COVER_RANGE]
+        self.covered[planner_cells(nav, near[:, :2], self.covered.shape)] = True
+        for name, xy in seen_robots(frame, self.public.instances).items():
+            if name != self.name:
+                self.teammates[name] = (nav.cell_of(float(xy[0]), float(xy[1])), self.t)
+        seen = set()
+        for d in detect_objects(frame, self.public.instances):
+            if d.object_id == self.state.held or d.object_id in self.done:
                 continue
             receptacle, surface, room = resting_place(self.house, d, self.surfaces)
             if not receptacle:
@@ -114,311 +171,331 @@ class HeuristicTeam(Team):
             else:
                 rtype = self.furniture[receptacle].surface(surface).receptacle_type
                 misplaced = not self.knowledge.D(d.type, rtype, self.room_type[room])
-            mem.objects[d.object_id] = Known(d.object_id, d.seg_id, d.type, d.position, misplaced)
-            sees_misplaced |= misplaced
-        return sees_misplaced
+            self.objects[d.object_id] = Known(d.object_id, d.seg_id, d.type, d.position, misplaced)
+            self.sees_misplaced |= misplaced
+            seen.add(d.object_id)
+        self._forget_moved(o, seen)
+        here = np.asarray(nav.center(*self.state.cell))
+        for r in list(self.reports):
+            if self._matches_known(r):
+                self.reports.remove(r)
+            elif np.hypot(*(np.asarray(r.xy) - here)) < COVER_RANGE and self._looked_at(r, o):
+                self.reports.remove(r)  # in clear view and not there: a stale report
+                self.dismissed.append(r)
 
-    # ------------------------------------------------------------------ communication
-    def _state(self, a: AgentState) -> np.ndarray:
-        job = self.jobs[a.name]
-        subtask = job[3] if job else SubTask(EXPLORE)
-        target = self._seg_of(job[1]) if job and job[0] == "pick" else 0
-        return np.array(
-            [
-                *a.capability,
-                *a.cell,
-                a.rotation,
-                subtask.kind == PLACE,
-                target,
-                self._type_index(subtask.receptacle_type),
-                ROOM_TYPES.index(subtask.room_type) if subtask.room_type else -1,
-            ],
-            dtype=np.float32,
+    def _forget_moved(self, o: dict, seen: set[str]) -> None:
+        """Known objects whose spot is in clear view but which were not detected have moved."""
+        for oid, k in list(self.objects.items()):
+            if oid not in seen and self._in_clear_view(k.position, o):
+                del self.objects[oid]
+
+    def _in_clear_view(self, point, o: dict) -> bool:
+        ext, intr = np.asarray(o["extrinsics"], float), np.asarray(o["intrinsics"], float)
+        cam = ext[:3, :3] @ np.asarray(point, float) + ext[:3, 3]
+        if not 0.2 < cam[2] < COVER_RANGE:
+            return False
+        u, v = intr[0, 0] * cam[0] / cam[2] + intr[0, 2], intr[1, 1] * cam[1] / cam[2] + intr[1, 2]
+        h, w = o["depth"].shape
+        if not (5 <= u < w - 5 and 5 <= v < h - 5):
+            return False
+        return bool(o["depth"][int(v), int(u)] > cam[2] - 0.1)  # nothing in front of it
+
+    def _looked_at(self, r: Report, o: dict) -> bool:
+        return any(self._in_clear_view([*r.xy, z], o) for z in (0.05, 0.45, 0.85))
+
+    def _matches_known(self, r: Report) -> bool:
+        return any(
+            k.type == r.type and np.hypot(*(k.position[:2] - np.asarray(r.xy))) < SAME_OBJECT
+            for k in self.objects.values()
         )
 
-    def _crop(self, a: AgentState) -> np.ndarray:
-        out = np.zeros((CROP, CROP), np.float32)
-        in_grid, in_crop = crop_window(a.cell, self.memory[a.name].explored.shape)
-        out[in_crop] = self.memory[a.name].explored[in_grid]
-        return out
-
-    def _detections(self, name: str) -> np.ndarray:
-        mem = self.memory[name]
-        rows = [
-            [k.seg_id, self._type_index(k.type), *k.position, 1.0]
-            for k in mem.objects.values()
-            if k.misplaced and k.object_id not in mem.done
-        ]
-        return np.array(rows, np.float32).reshape(-1, 6)
-
-    def _send(self, a: AgentState, receivers: list[str]) -> None:
-        self.channel.send(a.name, receivers, self._state(a), "state")
-        self.channel.send(a.name, receivers, self._crop(a), "map")
-        det = self._detections(a.name)
-        if det.size:
-            self.channel.send(a.name, receivers, det, "detections")
-
-    def _receive(self, name: str) -> None:
-        mem = self.memory[name]
-        by_sender: dict[str, dict[str, np.ndarray]] = {}
-        for m in self.channel.inbox(name):
-            by_sender.setdefault(m.sender, {})[m.kind] = m.vector
-        for sender, parts in by_sender.items():
-            if "state" in parts:
-                s = parts["state"]
-                cell = (int(s[3]), int(s[4]))
-                mem.poses[sender] = cell
-                if s[1] and s[7] > 0:
-                    oid = self._object_of_seg(int(s[7]))
-                    if oid:
-                        mem.claims[oid] = sender
-                if "map" in parts:
-                    self._merge_crop(mem, cell, parts["map"].reshape(CROP, CROP))
-            if "detections" in parts:
-                for row in parts["detections"].reshape(-1, 6):
-                    oid = self._object_of_seg(int(row[0]))
-                    if oid and oid not in mem.done and oid not in mem.objects:
-                        inst = self.instances[int(row[0])]
-                        mem.objects[oid] = Known(oid, int(row[0]), inst.type, row[2:5].copy(), True)
-            if "assignment" in parts:
-                row = parts["assignment"]
-                oid = self._object_of_seg(int(row[1])) if row[0] > 0 else None
-                self._assigned[name] = oid
-                if oid and oid not in mem.done:
-                    inst = self.instances[int(row[1])]
-                    mem.objects[oid] = Known(oid, int(row[1]), inst.type, row[2:5].copy(), True)
-
-    @staticmethod
-    def _merge_crop(mem: Memory, cell: Cell, crop: np.ndarray) -> None:
-        in_grid, in_crop = crop_window(cell, mem.explored.shape)
-        mem.explored[in_grid] |= crop[in_crop] > 0
-
-    def _central_node(self, agents: list[AgentState]) -> None:
-        """Merge what everyone sent, give each free manipulator the nearest unclaimed object."""
-        for a in agents:
-            self._send(a, [CENTRAL])
-        merged: dict[str, np.ndarray] = {}
-        for m in self.channel.inbox(CENTRAL):
-            if m.kind == "detections":
-                for row in m.vector.reshape(-1, 6):
-                    oid = self._object_of_seg(int(row[0]))
-                    if oid:
-                        merged[oid] = row
-        taken: set[str] = set()
-        for a in agents:
-            if not a.manipulator:
-                continue
+    def _failed(self, reason: str) -> None:
+        """A move blocked by a robot: that cell is occupied for a while; sometimes step aside."""
+        if "blocked by agent" not in reason:
+            if self.job is not None and not self.job.issued:
+                self.job.leg.give_up_goal()
+            return
+        action = next(
+            a
+            for a in (Action.MoveAhead, Action.MoveLeft, Action.MoveRight)
+            if reason.startswith(a.name)
+        )
+        self.blocked[move_target(self.state, action)] = self.t + BLOCK_STEPS
+        if self.job is not None:
+            self.job.leg.path = None
+        if self.rng.random() < 0.5:  # break the symmetry of two robots facing each other
             options = [
-                (float(np.hypot(*(np.array(self.house.navgrid.center(*a.cell)) - row[2:4]))), oid)
-                for oid, row in merged.items()
-                if oid not in taken
+                a
+                for a in (Action.MoveLeft, Action.MoveRight)
+                if self.house.navgrid.free(*move_target(self.state, a))
+                and move_target(self.state, a) not in self.blocked
             ]
-            oid = min(options)[1] if options and a.held is None else None
-            if oid:
-                taken.add(oid)
-            seg = merged[oid][0] if oid else 0
-            vec = [1.0 if oid else 0.0, seg, *(merged[oid][2:5] if oid else (0, 0, 0)), 0.0]
-            self.channel.send(CENTRAL, a.name, np.array(vec, np.float32), "assignment")
+            if options:
+                self._sidestep = options[int(self.rng.integers(len(options)))]
+
+    # ------------------------------------------------------------------ communication
+    def send(self, round: int, inbox: list[Message]) -> None:
+        if self.communication == "none":
+            return
+        if self.communication == "detection" and not self.sees_misplaced:
+            return
+        receivers = [CENTRAL] if self.communication == "central" else self.outbox.peers
+        if not receivers:
+            return
+        subtask = self.job.subtask if self.job is not None else SubTask(EXPLORE)
+        if self.job is not None and self.job.kind == "park":
+            subtask = SubTask("Park")
+        x, y = self.house.navgrid.center(*self.state.cell)
+        pose = (x, y, self.state.rotation)
+        misplaced = [
+            (k.type, k.position)
+            for k in self.objects.values()
+            if k.misplaced and k.object_id not in self.done
+        ]
+        self.outbox.send(receivers, encode_state(self.capability, pose, subtask), "state")
+        self.outbox.send(receivers, encode_crop(self.map, pose, misplaced), "map")
+
+    def _receive(self, inbox: list[Message]) -> None:
+        states = {m.sender: decode_state(m.vector) for m in inbox if m.kind == "state"}
+        nav = self.house.navgrid
+        for sender, st in states.items():
+            cell = nav.cell_of(st.pose[0], st.pose[1])
+            self.teammates[sender] = (cell, self.t)
+            if st.parking:
+                self.parked[sender] = cell
+            else:
+                self.parked.pop(sender, None)
+            if st.capability[1] and st.subtask.kind == PLACE and st.subtask.object_type:
+                self.claims[sender] = (st.subtask.object_type, cell)
+            else:
+                self.claims.pop(sender, None)
+        for m in inbox:
+            if m.kind == "map" and m.sender in states:
+                cells = decode_crop(m.vector, states[m.sender].pose, nav)
+                self.covered[cells.explored] = True
+                for object_type, xy in cells.misplaced:
+                    self._add_report(Report(object_type, xy))
+            elif m.kind == "assignment":
+                self.assignment = decode_assignment(m.vector)
+
+    def _add_report(self, report: Report) -> None:
+        if self._matches_known(report):
+            return
+        for r in [*self.reports, *self.dismissed]:
+            if r.type == report.type and np.hypot(*np.subtract(r.xy, report.xy)) < SAME_OBJECT:
+                return
+        self.reports.append(report)
 
     # ------------------------------------------------------------------ acting
-    def act(self, obs: dict[str, dict], info: dict) -> dict[str, Any]:
-        agents = [a for a in self._agents(obs) if a.name not in self.stopped]
-        self._assigned: dict[str, str | None] = {}
-        for a in agents:
-            self._outcome(a, info["failed"].get(a.name, ""))
-        for a in agents:  # where a robot stands is known, even if its camera never sees it
-            self.memory[a.name].explored[a.cell] = True
-        sees = {a.name: self._perceive(a.name, obs[a.name]) for a in agents}
-        if self.communication == "broadcast":
-            for a in agents:
-                self._send(a, [b for b in self.info.agents if b != a.name])
-        elif self.communication == "detection":
-            for a in agents:
-                if sees[a.name]:
-                    self._send(a, [b for b in self.info.agents if b != a.name])
-        elif self.central:
-            self._central_node(agents)
-        for a in agents:
-            self._receive(a.name)
-        self._labels = {}
-        return {a.name: self._decide(a, agents) for a in agents}
-
-    def labels(self) -> dict[str, tuple[SubTask, SubGoal]]:
-        return self._labels
-
-    def _outcome(self, a: AgentState, failure: str) -> None:
-        pending, self.pending[a.name] = self.pending[a.name], None
-        if pending is None:
-            return
-        kind, target = pending
-        job = self.jobs[a.name]
-        mem = self.memory[a.name]
-        if kind == "pick" and a.held == target:
-            mem.done.add(target)
-            self.jobs[a.name] = None
-        elif kind == "place" and a.held is None:
-            self.jobs[a.name] = None
-        elif job is not None:
-            job[2].give_up_goal()
-
-    def _decide(self, a: AgentState, agents: list[AgentState]) -> Any:
-        others = {b.cell for b in agents if b is not a} | set(self._stopped_cells)
+    def act(self, inbox: list[Message]) -> Action | Targeted:
+        self._receive(inbox)
+        if self._sidestep is not None:
+            action, self._sidestep = self._sidestep, None
+            if self.job is not None:
+                self.job.leg.path = None
+            return action
+        occupied = {c for c, t in self.teammates.values() if self.t - t < TEAMMATE_STEPS}
+        occupied |= {c for c, until in self.blocked.items() if until >= self.t}
+        stopped = set(self.parked.values()) - {self.state.cell}
+        occupied -= {self.state.cell}
+        s = self.state
         for _ in range(4):
-            job = self.jobs[a.name] or self._new_job(a)
-            self.jobs[a.name] = job
-            kind, target, leg, subtask = job
-            if kind == "park" and a.cell == leg.candidates[0].cell:
-                self.stopped.add(a.name)
-                self._stopped_cells.append(a.cell)
+            if self.job is None:
+                self.job = self._new_job(occupied | stopped)
+            job = self.job
+            if job.kind == "park" and s.cell == job.leg.candidates[0].cell:
+                self._label = job.label(s)
                 return Action.Stop
-            if kind == "explore" and self.memory[a.name].explored[leg.candidates[0].cell]:
-                self.jobs[a.name] = None
+            if job.kind == "explore" and self.covered[job.leg.candidates[0].cell]:
+                self.job = None
                 continue
             try:
-                action = self.walker.step(a, leg, others, set(self._stopped_cells))
+                action = self.walker.step(s, job.leg, occupied, stopped)
             except NoViewpoint:
-                if kind == "pick":
-                    self.memory[a.name].done.add(target)
-                elif kind == "place":
-                    self._bad_surfaces.setdefault(a.name, set()).add(target)
-                elif kind == "explore":
-                    self.memory[a.name].explored[leg.candidates[0].cell] = True
-                self.jobs[a.name] = None
+                self._give_up(job)
+                self.job = None
                 continue
-            ope = {"pick": "PickUp", "place": "PutDown"}.get(kind, "NoAction")
-            goal = leg.goal or leg.candidates[0]  # None after giving up on a blocked goal
-            path = list(leg.path) if leg.path else [a.cell, goal.cell]
-            if path[0] != a.cell:
-                path = [a.cell, *path]
-            label = subgoal(a, path, goal.rotation, ope, kind == "park")
-            self._labels[a.name] = (subtask, label)
+            self._label = job.label(s)
             if action is not None:
                 return action
-            if kind in ("pick", "place"):
-                self.pending[a.name] = (kind, target)
-                return Targeted(Action.PickUp if kind == "pick" else Action.PutDown, target)
-            self.jobs[a.name] = None  # explored there: pick a new target
-        return Action.RotateLeft  # look around while nothing else comes to mind
+            if job.kind in ("pick", "place"):
+                job.issued = True
+                op = Action.PickUp if job.kind == "pick" else Action.PutDown
+                return Targeted(op, job.target)
+            if job.kind == "look":
+                self._drop_looked_report()
+            elif job.kind == "inspect":
+                self.inspected.add(job.target)
+            self.job = None  # searched there: pick a new target
+        return wait_action(s)
 
-    def _new_job(self, a: AgentState) -> tuple[str, str, Leg, SubTask]:
-        mem = self.memory[a.name]
-        height = robot_kind(a.capability).camera_height
-        if a.manipulator and a.held is not None:
-            place = self._surface_for(a)
-            if place is not None:
-                return place
-        elif a.manipulator:
-            oid = self._assigned.get(a.name) if self.central else self._nearest_misplaced(a)
-            if oid and oid in mem.objects and oid not in mem.done:
-                k = mem.objects[oid]
-                return (
-                    "pick",
-                    oid,
-                    Leg(viewpoints(self.house, k.position, height)[:12]),
-                    SubTask(PLACE, k.type),
-                )
-        cell = self._frontier(a)
+    def label(self) -> Label | None:
+        return self._label
+
+    def _give_up(self, job: Job) -> None:
+        if job.kind == "pick":
+            self.done.add(job.target)
+        elif job.kind == "place":
+            self.bad_surfaces.add(job.target)
+        elif job.kind == "explore":
+            self.covered[job.leg.candidates[0].cell] = True
+        elif job.kind == "look":
+            self._drop_looked_report()
+        elif job.kind == "inspect":
+            self.inspected.add(job.target)
+
+    def _drop_looked_report(self) -> None:
+        if self._looking is not None:
+            self.dismissed.append(self._looking)
+        self.reports = [r for r in self.reports if r is not self._looking]
+        self._looking = None
+
+    # ------------------------------------------------------------------ choosing a job
+    def _new_job(self, avoid: set[Cell]) -> Job:
+        s = self.state
+        if self.manipulator and s.held is not None:
+            job = self._place_job()
+            if job is not None:
+                return job
+        elif self.manipulator:
+            job = self._fetch_job()
+            if job is not None:
+                return job
+        cell = self._search_target(avoid)
         if cell is None:
-            park = self.planner.parking(a.cell, self._stopped_cells, set())
-            return (
-                "park",
-                "",
-                Leg([Viewpoint(park, a.rotation, a.horizon, 0.0)]),
-                SubTask(EXPLORE),
+            job = self._inspect_job()
+            if job is not None:
+                return job
+            park = self.planner.parking(s.cell, set(self.parked.values()), avoid)
+            return Job(
+                "park", "", Leg([Viewpoint(park, s.rotation, s.horizon, 0.0)]), SubTask(EXPLORE)
             )
-        horizon = EXPLORE_HORIZON[height > 0.5]
-        rotation = a.rotation
-        return ("explore", "", Leg([Viewpoint(cell, rotation, horizon, 0.0)]), SubTask(EXPLORE))
+        horizon = EXPLORE_HORIZON[self.height > 0.5]
+        leg = Leg([Viewpoint(cell, s.rotation, horizon, 0.0)])
+        return Job("explore", "", leg, SubTask(EXPLORE))
 
-    def _nearest_misplaced(self, a: AgentState) -> str | None:
-        mem = self.memory[a.name]
-        here = np.array(self.house.navgrid.center(*a.cell))
-        options = [
-            (float(np.hypot(*(k.position[:2] - here))), oid)
-            for oid, k in mem.objects.items()
-            if k.misplaced and oid not in mem.done and mem.claims.get(oid, a.name) == a.name
-        ]
-        return min(options)[1] if options else None
+    def _fetch_job(self) -> Job | None:
+        here = np.asarray(self.house.navgrid.center(*self.state.cell))
+        if self.assignment is not None and self.assignment[0] == FETCH:
+            _, object_type, xyz = self.assignment
+            options = [k for k in self._targets() if k.type == object_type]
+            if not options:
+                return self._look_job(Report(object_type, (float(xyz[0]), float(xyz[1]))))
+        else:
+            options = self._targets()
+        if options:
+            k = min(options, key=lambda k: (float(np.hypot(*(k.position[:2] - here))), k.object_id))
+            leg = Leg(viewpoints(self.house, k.position, self.height)[:12])
+            return Job("pick", k.object_id, leg, SubTask(PLACE, k.type))
+        if self.reports:
+            r = min(
+                self.reports, key=lambda r: (float(np.hypot(*(np.asarray(r.xy) - here))), r.type)
+            )
+            return self._look_job(r)
+        return None
 
-    def _surface_for(self, a: AgentState):
-        """The nearest surface seen by this agent (or told of) where D holds for what it holds."""
-        held_type = self.instances[self._seg_of(a.held)].type
-        mem, bad = self.memory[a.name], self._bad_surfaces.get(a.name, set())
-        here = np.array(self.house.navgrid.center(*a.cell))
+    def _targets(self) -> list[Known]:
+        """Misplaced objects this agent knows of that no closer teammate manipulator is after."""
+        out = []
+        for k in self.objects.values():
+            if not k.misplaced or k.object_id in self.done:
+                continue
+            mine = float(np.hypot(*(k.position[:2] - self.house.navgrid.center(*self.state.cell))))
+            taken = any(
+                t == k.type
+                and float(np.hypot(*(k.position[:2] - self.house.navgrid.center(*c)))) < mine
+                for t, c in self.claims.values()
+            )
+            if not taken:
+                out.append(k)
+        return out
+
+    def _look_job(self, r: Report) -> Job:
+        if r not in self.reports:
+            self.reports.append(r)
+        self._looking = r
+        leg = Leg(viewpoints(self.house, np.array([*r.xy, REPORT_HEIGHT]), self.height)[:12])
+        return Job("look", r.type, leg, SubTask(PLACE, r.type))
+
+    def _place_job(self) -> Job | None:
+        """The nearest surface of the floor plan where D holds for what the agent holds."""
+        held_type = self.public.instances[self._seg_of(self.state.held)].type
+        here = np.asarray(self.house.navgrid.center(*self.state.cell))
         best = None
-        for f in self.house.furniture:
-            r, c = self.house.navgrid.cell_of(*f.position[:2])
-            if not (0 <= r < mem.explored.shape[0] and 0 <= c < mem.explored.shape[1]):
+        for spot in self.surfaces:
+            target = f"{spot.furniture}/{spot.surface}"
+            if target in self.bad_surfaces:
                 continue
-            if not mem.explored[r, c]:
+            rtype = self.furniture[spot.furniture].surface(spot.surface).receptacle_type
+            if not self.knowledge.D(held_type, rtype, self.room_type[spot.room]):
                 continue
-            for s in f.surfaces:
-                target = f"{f.id}/{s.name}"
-                if target in bad:
-                    continue
-                if not self.knowledge.D(held_type, s.receptacle_type, self.room_type[f.room]):
-                    continue
-                centre, _ = f.surface_world(s)
-                d = float(np.hypot(centre[0] - here[0], centre[1] - here[1]))
-                if best is None or d < best[0]:
-                    best = (d, target, centre, s.receptacle_type, f.room)
+            x0, y0, x1, y1 = spot.bounds
+            centre = np.array([(x0 + x1) / 2, (y0 + y1) / 2, spot.height])
+            d = float(np.hypot(*(centre[:2] - here)))
+            if best is None or d < best[0]:
+                best = (d, target, centre, rtype, spot.room)
         if best is None:
             return None
         _, target, centre, rtype, room = best
-        height = robot_kind(a.capability).camera_height
-        leg = Leg(viewpoints(self.house, np.asarray(centre) + [0, 0, 0.02], height)[:12])
-        return ("place", target, leg, SubTask(PLACE, held_type, rtype, self.room_type[room]))
+        leg = Leg(viewpoints(self.house, centre + [0, 0, 0.02], self.height)[:12])
+        return Job("place", target, leg, SubTask(PLACE, held_type, rtype, self.room_type[room]))
 
-    def _frontier(self, a: AgentState) -> Cell | None:
-        """The nearest reachable free cell not yet explored (as far as this agent knows)."""
-        mem = self.memory[a.name]
-        dist = self.planner.distances(a.cell, set(self._stopped_cells))
-        others = [c for n, c in mem.poses.items() if n != a.name]
+    def _inspect_job(self) -> Job | None:
+        """Look at the nearest surface not yet inspected (objects hide on and in furniture),
+        preferring those no teammate this agent knows of is nearer to."""
+        nav = self.house.navgrid
+        here = np.asarray(nav.center(*self.state.cell))
+        others = [
+            np.asarray(nav.center(*c))
+            for n, (c, t) in self.teammates.items()
+            if n != self.name and self.t - t <= TEAMMATE_STEPS and n not in self.parked
+        ]
+        low, high = INSPECT_HEIGHTS[self.height > 0.5]
+        options = []
+        for spot in self.surfaces:
+            target = f"{spot.furniture}/{spot.surface}"
+            if target in self.inspected or not low <= spot.height <= high:
+                continue
+            x0, y0, x1, y1 = spot.bounds
+            centre = np.array([(x0 + x1) / 2, (y0 + y1) / 2, spot.height])
+            mine = float(np.hypot(*(centre[:2] - here)))
+            nearer = any(float(np.hypot(*(centre[:2] - o))) < mine for o in others)
+            options.append((nearer, mine, target, centre))
+        if not options:
+            return None
+        _, _, target, centre = min(options, key=lambda o: o[:3])
+        leg = Leg(viewpoints(self.house, centre + [0, 0, 0.05], self.height)[:12])
+        return Job("inspect", target, leg, SubTask(EXPLORE))
+
+    def _search_target(self, avoid: set[Cell]) -> Cell | None:
+        """Where to search next: the central node's area, else the nearest unsearched cell
+        (as far as this agent knows) away from the teammates it knows of."""
+        dist = self.planner.distances(self.state.cell, set(self.parked.values()))
+        if self.assignment is not None and self.assignment[0] == EXPLORE_AREA:
+            cell = self.house.navgrid.cell_of(*self.assignment[2][:2])
+            if cell in dist and not self.covered[cell]:
+                return cell
+        others = [c for n, (c, _) in self.teammates.items() if n != self.name]
         best = None
         for cell, d in dist.items():
-            if mem.explored[cell]:
+            if self.covered[cell] or cell in avoid:
                 continue
             crowd = sum(1 for o in others if abs(o[0] - cell[0]) + abs(o[1] - cell[1]) < 6)
-            score = d + 8 * crowd
-            if best is None or score < best[0]:
-                best = (score, cell)
+            score = (d + 8 * crowd, cell)
+            if best is None or score < best:
+                best = score
         return best[1] if best else None
 
-    # ------------------------------------------------------------------ helpers
-    def _agents(self, obs: dict[str, dict]) -> list[AgentState]:
-        out = []
-        for name, cap in zip(self.info.agents, self.info.capabilities, strict=True):
-            o = obs[name]
-            x, y, rot = (float(v) for v in o["pose"])
-            state = self._states.setdefault(name, AgentState(name, cap, (0, 0), 0))
-            state.cell = self.house.navgrid.cell_of(x, y)
-            state.rotation = int(round(rot)) % 360
-            state.horizon = camera_pitch(o["extrinsics"])
-            seg = int(o["held"])
-            state.held = self.instances[seg].id if seg else None
-            out.append(state)
-        return out
-
     def _seg_of(self, oid: str | None) -> int:
-        return self.seg_of.get(oid, 0)
-
-    def _object_of_seg(self, seg: int) -> str | None:
-        inst = self.instances.get(seg)
-        return inst.id if inst is not None and inst.kind == "object" else None
-
-    def _type_index(self, t: str) -> int:
-        return self.catalog.category_index(t) if t else -1
+        return next(s for s, inst in self.public.instances.items() if inst.id == oid)
 
 
-def crop_window(cell: Cell, shape: tuple[int, int]) -> tuple[tuple[slice, slice], ...]:
-    """Slices of the grid and of a CROP x CROP crop centred on ``cell`` that overlap."""
-    out_grid, out_crop = [], []
-    for centre, size in zip(cell, shape, strict=True):
-        lo = centre - CROP // 2
-        start, stop = max(lo, 0), min(lo + CROP, size)
-        out_grid.append(slice(start, stop))
-        out_crop.append(slice(start - lo, stop - lo))
-    return tuple(out_grid), tuple(out_crop)
+def planner_cells(nav, xy: np.ndarray, shape) -> tuple[np.ndarray, np.ndarray]:
+    """(rows, cols) of the planner cells under world points (N, 2) that lie on the grid."""
+    rows = np.floor((xy[:, 1] - nav.origin[1]) / nav.cell).astype(np.int64)
+    cols = np.floor((xy[:, 0] - nav.origin[0]) / nav.cell).astype(np.int64)
+    on = (rows >= 0) & (rows < shape[0]) & (cols >= 0) & (cols < shape[1])
+    return rows[on], cols[on]
 
 
 def camera_pitch(extrinsics: np.ndarray) -> int:
@@ -427,9 +504,27 @@ def camera_pitch(extrinsics: np.ndarray) -> int:
     return int(round(np.degrees(-np.arcsin(np.clip(forward[2], -1, 1))) / 30.0)) * 30
 
 
+class HeuristicTeam(Team):
+    """Camera-only agents with one of the paper's communication patterns (see the top)."""
+
+    name = "heuristic"
+    communication = "none"
+    observations = "depth+segmentation"  # no colour: the env skips reading it back
+    perception = "ground-truth segmentation + depth, open3d semantic map"
+
+    def make_agent(self, name: str, public: PublicInfo, outbox: Outbox) -> Agent:
+        return HeuristicAgent(name, public, outbox, self.communication)
+
+    def make_central(self, public: PublicInfo, outbox: Outbox):
+        if not self.central:
+            return None
+        from maniskill_tidy.policies.central import HeuristicCentral
+
+        return HeuristicCentral(public, outbox)
+
+
 class NoCommTeam(HeuristicTeam):
     name = "heuristic-none"
-    communication = "none"
 
 
 class DetectionCommTeam(HeuristicTeam):
@@ -445,11 +540,11 @@ class BroadcastTeam(HeuristicTeam):
 class CentralTeam(HeuristicTeam):
     name = "heuristic-central"
     communication = "central"
+    central = True
 
 
 class SingleAgent(HeuristicTeam):
     """The paper's SA: one manipulator alone (starting where Setting I's first agent does)."""
 
     name = "sa"
-    communication = "none"
     team_override = [[1, 1, 1]]

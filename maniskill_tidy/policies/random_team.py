@@ -1,32 +1,37 @@
 """The paper's Random baseline: every agent draws uniformly from its own action space.
 
 Stop is left out of the draw (with it, a team of three would end most episodes within a few
-steps); as in the paper the episode then runs to the 300-step limit. Seeded per episode.
+steps); as in the paper the episode then runs to the 300-step limit. Each agent has its own
+generator, seeded from the episode seed and its index in the team.
 """
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
 from maniskill_tidy.envs.actions import Action
-from maniskill_tidy.policies.base import PublicInfo, Team
-from maniskill_tidy.policies.channel import Channel
+from maniskill_tidy.policies.base import Agent, AgentView, PublicInfo, Team
+from maniskill_tidy.policies.channel import Message, Outbox
+
+
+class RandomAgent(Agent):
+    def __init__(self, name: str, public: PublicInfo, outbox: Outbox) -> None:
+        super().__init__(name, public, outbox)
+        self.rng = np.random.default_rng([public.seed, public.agents.index(name)])
+        manipulator = bool(public.capability(name)[1])
+        self.choices = [a for a in Action if a != Action.Stop and (manipulator or a < Action.Stop)]
+
+    def observe(self, view: AgentView) -> None:
+        pass
+
+    def act(self, inbox: list[Message]) -> Action:
+        return self.choices[self.rng.integers(len(self.choices))]
 
 
 class RandomTeam(Team):
     name = "random"
     needs_images = False
+    perception = "none (uniform random actions)"
 
-    def reset(self, info: PublicInfo, channel: Channel, env: Any | None = None) -> None:
-        self.rng = np.random.default_rng(info.seed)
-        self.choices = {
-            name: [a for a in Action if a != Action.Stop and (cap[1] or a < Action.Stop)]
-            for name, cap in zip(info.agents, info.capabilities, strict=True)
-        }
-
-    def act(self, obs: dict[str, dict], info: dict) -> dict[str, Any]:
-        return {
-            name: self.choices[name][self.rng.integers(len(self.choices[name]))] for name in obs
-        }
+    def make_agent(self, name: str, public: PublicInfo, outbox: Outbox) -> Agent:
+        return RandomAgent(name, public, outbox)

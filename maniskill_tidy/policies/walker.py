@@ -1,6 +1,8 @@
 """Going to a viewpoint: pick the best free cell, follow the shortest path, wait out other robots.
 
-Shared by the expert and the heuristic teams; what to do once there is theirs to decide.
+Shared by the expert and the heuristic teams, with the :class:`Job` both pursue (where to go,
+what to do there), its sub-task / sub-goal label and the check of an operation's outcome;
+which job to take is theirs to decide.
 """
 
 from __future__ import annotations
@@ -9,7 +11,14 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from maniskill_tidy.envs.actions import HORIZON_RANGE, STEP, Action, AgentState
-from maniskill_tidy.policies.navigation import Cell, GridPlanner, move_towards, turn_towards
+from maniskill_tidy.policies.base import Label, SubTask
+from maniskill_tidy.policies.navigation import (
+    Cell,
+    GridPlanner,
+    move_towards,
+    subgoal,
+    turn_towards,
+)
 from maniskill_tidy.policies.viewpoints import Viewpoint
 
 MAX_WAITS = 4  # steps to wait for a blocked path before trying another viewpoint
@@ -87,3 +96,43 @@ class Walker:
 def wait_action(agent: AgentState) -> Action:
     """A harmless action that leaves the robot where it is (a camera tilt)."""
     return Action.LookDown if agent.horizon < HORIZON_RANGE[1] else Action.LookUp
+
+
+OPERATION = {"pick": "PickUp", "place": "PutDown"}
+
+
+@dataclass
+class Job:
+    """What an agent is doing: walking a leg to ``target`` and then operating there.
+
+    ``kind`` is "pick" (target: an object id), "place" (a "furniture/surface"), "look" (at an
+    object, or where one was reported), "inspect" (look at a "furniture/surface"), "explore"
+    (walk there and look) or "park" (walk there and stop)."""
+
+    kind: str
+    target: str
+    leg: Leg
+    subtask: SubTask
+    issued: bool = False  # the operation was sent last step; its outcome is due
+
+    def label(self, agent: AgentState) -> Label:
+        """The paper's (sub-task, sub-goal) for this step: the next waypoint of the path."""
+        leg = self.leg
+        goal = leg.goal or leg.candidates[0]  # None after giving up on a blocked goal
+        path = list(leg.path) if leg.path else [agent.cell, goal.cell]
+        if path[0] != agent.cell:  # the walker already stepped past this cell
+            path = [agent.cell, *path]
+        if agent.cell == goal.cell:
+            path = [agent.cell]
+        ope = OPERATION.get(self.kind, "NoAction")
+        return self.subtask, subgoal(agent, path, goal.rotation, ope, self.kind == "park")
+
+    def succeeded(self, agent: AgentState) -> bool:
+        """Whether the operation issued last step worked; if not, the next viewpoint is tried."""
+        self.issued = False
+        if self.kind == "pick" and agent.held == self.target:
+            return True
+        if self.kind == "place" and agent.held is None:
+            return True
+        self.leg.give_up_goal()
+        return False

@@ -27,11 +27,16 @@ from tqdm import tqdm
 
 from maniskill_tidy.houses.generator import generate_house
 from maniskill_tidy.houses.schema import SCHEMA_VERSION, House, house_from_dict
-from maniskill_tidy.tasks.metatask import MetaTask, generate_meta_tasks
+from maniskill_tidy.tasks.metatask import (
+    SINGLE_FRACTION,
+    MetaTask,
+    generate_meta_tasks,
+    single_schedule,
+)
 
 SHARD_SIZE = 50
 SPLITS = ("train", "val", "test")
-GENERATOR_VERSION = "2"  # 2: misplacements no higher than the manipulator camera
+GENERATOR_VERSION = "3"  # 2: misplacements no higher than the manipulator camera; 3: Single mix
 
 
 class DatasetError(RuntimeError):
@@ -68,13 +73,14 @@ def sha256(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
 
-def _make_shard(args: tuple[int, str, int, int]) -> tuple[str, int, int, bytes]:
-    seed, split, start, stop = args
+def _make_shard(args: tuple[int, str, int, int, float]) -> tuple[str, int, int, bytes]:
+    seed, split, start, stop, single_fraction = args
+    built = [generate_house(seed, i) for i in range(start, stop)]
+    schedule = single_schedule(built, list(range(start, stop)), seed, single_fraction)
     houses, tasks = [], []
-    for i in range(start, stop):
-        house = generate_house(seed, i)
+    for i, house in zip(range(start, stop), built, strict=True):
         houses.append(house.to_dict())
-        tasks += [t.to_dict() for t in generate_meta_tasks(house, seed, i)]
+        tasks += [t.to_dict() for t in generate_meta_tasks(house, seed, i, schedule[i])]
     payload = {
         "schema_version": SCHEMA_VERSION,
         "split": split,
@@ -92,13 +98,21 @@ def generate_dataset(
     counts: tuple[int, int, int] | None = None,
     workers: int = 1,
     progress: bool = True,
+    single_fraction: float = SINGLE_FRACTION,
 ) -> dict:
-    """Generate (or resume) a dataset in ``out``; returns the manifest."""
+    """Generate (or resume) a dataset in ``out``; returns the manifest.
+
+    ``single_fraction``: the share of meta-tasks meant to be Single (default the paper's)."""
     out = Path(out)
+    if n_houses < 1:
+        raise ValueError(f"--houses must be at least 1, got {n_houses}")
+    if not 0.0 <= single_fraction <= 1.0:
+        raise ValueError(f"--single-fraction must lie in [0, 1], got {single_fraction}")
     splits = split_counts(n_houses, counts)
     params = {
         "houses": n_houses,
         "seed": seed,
+        "single_fraction": single_fraction,
         "splits": splits,
         "generator_version": GENERATOR_VERSION,
         "schema_version": SCHEMA_VERSION,
@@ -116,7 +130,10 @@ def generate_dataset(
         n = splits[split]
         for k, s in enumerate(range(start, start + n, SHARD_SIZE)):
             jobs.append(
-                (f"{split}/shard-{k:04d}.json.gz", (seed, split, s, min(s + SHARD_SIZE, start + n)))
+                (
+                    f"{split}/shard-{k:04d}.json.gz",
+                    (seed, split, s, min(s + SHARD_SIZE, start + n), single_fraction),
+                )
             )
         start += n
     todo = [(name, a) for name, a in jobs if not (out / name).exists()]
@@ -198,6 +215,8 @@ def read_manifest(root: Path) -> dict:
         manifest = json.loads(path.read_text())
     except json.JSONDecodeError as e:
         raise DatasetError(f"{path} is not valid JSON: {e}") from None
+    if not isinstance(manifest.get("files"), dict):
+        raise DatasetError(f"{path}: no 'files' table; regenerate the dataset")
     if manifest.get("schema_version") != SCHEMA_VERSION:
         raise DatasetError(
             f"{path}: schema_version {manifest.get('schema_version')!r}, "
@@ -206,9 +225,19 @@ def read_manifest(root: Path) -> dict:
     return manifest
 
 
-def read_shard(path: Path) -> dict:
+def read_shard(path: Path, expected_sha256: str | None = None) -> dict:
+    """A shard's payload; with ``expected_sha256``, refuses a file whose bytes differ."""
     try:
-        payload = json.loads(gzip.decompress(Path(path).read_bytes()))
+        data = Path(path).read_bytes()
+    except FileNotFoundError:
+        raise DatasetError(f"{path}: listed in the manifest but missing") from None
+    if expected_sha256 is not None and sha256(data) != expected_sha256:
+        raise DatasetError(
+            f"{path}: sha256 differs from the manifest (the file was changed or truncated); "
+            "regenerate the dataset or run `maniskill-tidy validate`"
+        )
+    try:
+        payload = json.loads(gzip.decompress(data))
     except (OSError, EOFError, gzip.BadGzipFile) as e:
         raise DatasetError(f"{path}: not a complete gzip file ({e})") from None
     except json.JSONDecodeError as e:
@@ -229,7 +258,7 @@ def load_dataset(root: Path, split: str = "train") -> Dataset:
     for name in sorted(manifest["files"]):
         if not name.startswith(split + "/"):
             continue
-        payload = read_shard(root / name)
+        payload = read_shard(root / name, manifest["files"][name].get("sha256"))
         for h in payload["houses"]:
             house = house_from_dict(h)
             houses[house.id] = house

@@ -5,9 +5,14 @@ Each misplaced object goes to an unreasonable place (D false) by one of three mo
 - ``other_room_receptacle``: a receptacle in another room;
 - ``floor``: dropped on the floor of its room.
 A meta-task is *Single* when every misplaced object stays in its original room and *Cross*
-when at least one changes room (the paper's definition). The goal is checkable from the spec
-alone: each misplaced object lists its original location and every surface of this house where
-it would be reasonable (the original one included, so a goal always exists).
+when at least one changes room (the paper's definition). Which kind a meta-task is meant to be
+is decided first, per dataset shard (:func:`single_schedule`), so that a split has the paper's mix:
+``SINGLE_FRACTION`` of the tasks are Single (565 of the 1000 test episodes in the paper);
+a Cross task moves its first object to another room, a Single task moves none there. A house
+with one room, or a Cross task whose objects fit nowhere in another room, gives Single tasks.
+The goal is checkable from the spec alone: each misplaced object lists its original location
+and every surface of this house where it would be reasonable (the original one included, so a
+goal always exists).
 
 Misplaced objects only go where a robot can find and take them (:func:`findable`): on surfaces
 at most ``MAX_MISPLACED_HEIGHT`` above the floor (no robot camera is higher than 1.0 m, and a flat
@@ -37,6 +42,8 @@ MOVES = ("same_room_receptacle", "other_room_receptacle", "floor")
 MAX_MISPLACED_HEIGHT = 1.0  # metres: the manipulator's camera height
 PICK_REACH = 1.45  # metres: PickUp's 1.5 m reach from the robot's centre, with a margin
 MOVE_P = (0.4, 0.35, 0.25)
+SINGLE_FRACTION = 0.565  # the paper's test split: 565 Single and 435 Cross episodes of 1000
+SCHEDULE_STREAM = 100  # house_rng stream that orders a house's Single and Cross tasks
 
 
 @dataclass
@@ -150,15 +157,46 @@ def _within_reach(position: list[float], free_xy: np.ndarray) -> bool:
     return bool(np.min(np.hypot(*(free_xy - np.asarray(position[:2])).T)) <= PICK_REACH)
 
 
-def generate_meta_task(house: House, seed: int, house_index: int, task_index: int) -> MetaTask:
-    """Meta-task ``task_index`` of a house; its randomness depends only on the arguments."""
+def single_schedule(
+    houses: list[House], indices: list[int], seed: int, fraction: float = SINGLE_FRACTION
+) -> dict[int, set[int]]:
+    """Which meta-tasks of a batch of houses (a dataset shard) are meant to be Single.
+
+    The batch gets ``round(fraction * tasks)`` Single tasks. One-room houses can only have
+    Single tasks; the rest are spread over the multi-room houses as evenly as counts allow
+    (``floor((j + 1) r) - floor(j r)`` for the j-th of them), and within a house a seeded
+    permutation picks which tasks. So a split has the fraction to within a task or two
+    whatever share of its houses has one room, and the batch alone decides it."""
+    if not 0.0 <= fraction <= 1.0:
+        raise ValueError(f"the Single fraction must lie in [0, 1], got {fraction}")
+    n = META_TASKS_PER_HOUSE
+    multi = [i for h, i in zip(houses, indices, strict=True) if len(h.rooms) > 1]
+    total = int(round(fraction * n * len(houses)))
+    rate = min(max(total - n * (len(houses) - len(multi)), 0) / max(len(multi), 1), n)
+    out = {}
+    for h, i in zip(houses, indices, strict=True):
+        if len(h.rooms) == 1:
+            out[i] = set(range(n))
+            continue
+        j = multi.index(i)
+        count = int(np.floor((j + 1) * rate + 1e-9)) - int(np.floor(j * rate + 1e-9))
+        order = house_rng(seed, i, stream=SCHEDULE_STREAM).permutation(n)
+        out[i] = {int(t) for t in order[:count]}
+    return out
+
+
+def generate_meta_task(
+    house: House, seed: int, house_index: int, task_index: int, single: bool = False
+) -> MetaTask:
+    """Meta-task ``task_index`` of a house, meant to be Single or Cross (``single``); its
+    randomness depends only on the arguments."""
     rng = house_rng(seed, house_index, stream=1 + task_index)
     work = copy.deepcopy(house)
     frame, free = house_grid(work)
     placer = ObjectPlacer(work, frame, free, rng)
     free_xy = np.stack([frame.X[free], frame.Y[free]], axis=1)
     k = int(rng.integers(1, 6))
-    multi_room = len(house.rooms) > 1
+    cross_wanted = not single and len(house.rooms) > 1
     candidates = [o for o in work.objects]
     order = rng.permutation(len(candidates))
     moved: list[Misplacement] = []
@@ -166,10 +204,14 @@ def generate_meta_task(house: House, seed: int, house_index: int, task_index: in
         if len(moved) == k:
             break
         obj = candidates[int(i)]
-        allowed = [m for m in MOVES if multi_room or m != "other_room_receptacle"]
-        p = np.array([MOVE_P[MOVES.index(m)] for m in allowed])
-        first = allowed[int(rng.choice(len(allowed), p=p / p.sum()))]
-        moves = [first] + [m for m in allowed if m != first]
+        crossed = any(m.how == "other_room_receptacle" for m in moved)
+        if cross_wanted and not crossed:
+            moves = ["other_room_receptacle"]  # a Cross task's first object changes room
+        else:
+            allowed = [m for m in MOVES if cross_wanted or m != "other_room_receptacle"]
+            p = np.array([MOVE_P[MOVES.index(m)] for m in allowed])
+            first = allowed[int(rng.choice(len(allowed), p=p / p.sum()))]
+            moves = [first] + [m for m in allowed if m != first]
         for how in moves:
             target = _try_move(placer, work, obj, how, rng, free_xy)
             if target is None:
@@ -211,8 +253,17 @@ def house_grid(house: House) -> tuple[GridFrame, np.ndarray]:
     return compute_free(house)
 
 
-def generate_meta_tasks(house: House, seed: int, house_index: int) -> list[MetaTask]:
-    return [generate_meta_task(house, seed, house_index, t) for t in range(META_TASKS_PER_HOUSE)]
+def generate_meta_tasks(
+    house: House, seed: int, house_index: int, single: set[int] | None = None
+) -> list[MetaTask]:
+    """A house's meta-tasks; ``single``: which are meant to be Single (default: the share of
+    ``single_schedule`` for this house alone)."""
+    if single is None:
+        single = single_schedule([house], [house_index], seed)[house_index]
+    return [
+        generate_meta_task(house, seed, house_index, t, t in single)
+        for t in range(META_TASKS_PER_HOUSE)
+    ]
 
 
 def apply_task(house: House, task: MetaTask) -> House:

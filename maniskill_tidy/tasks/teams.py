@@ -28,7 +28,10 @@ def load_preset(path: str | Path) -> tuple[str | None, tuple[Capability, ...]]:
             f'{path}: not a team preset ({e}); expected JSON with a "team" list of '
             '(Nav, Mani, Hei) triples and optionally a "setting" name'
         ) from None
-    return data.get("setting"), team(members)
+    try:
+        return data.get("setting"), team(members)
+    except (ValueError, TypeError) as e:
+        raise ValueError(f"{path}: {e}") from None
 
 
 def team(setting: str | list | tuple) -> tuple[Capability, ...]:
@@ -43,7 +46,12 @@ def team(setting: str | list | tuple) -> tuple[Capability, ...]:
                 f"unknown setting {setting!r}; expected one of {sorted(SETTINGS)} "
                 "or a list of (Nav, Mani, Hei) triples"
             ) from None
-    members = tuple(tuple(int(v) for v in member) for member in setting)
+    try:
+        members = tuple(tuple(int(v) for v in member) for member in setting)
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"team {setting!r}: expected a list of (Nav, Mani, Hei) triples of 0/1"
+        ) from None
     for i, member in enumerate(members):
         if len(member) != 3 or any(v not in (0, 1) for v in member):
             raise ValueError(f"team member {i}: {member} is not a (Nav, Mani, Hei) triple of 0/1")

@@ -198,6 +198,8 @@ def validate_dataset(root: Path, progress: bool = True, deep: bool = True) -> li
         return [str(e)]
     problems = []
     listed = set(manifest.get("files", {}))
+    if not listed or not any(f.get("houses") for f in manifest.get("files", {}).values()):
+        problems.append("manifest.json: the dataset has no houses (generate with --houses >= 1)")
     on_disk = {str(p.relative_to(root)) for p in root.glob("*/shard-*.json.gz")}
     for name in sorted(on_disk - listed):
         problems.append(f"{name}: shard on disk but not in the manifest")

@@ -47,36 +47,38 @@ def _encode_action(action) -> tuple[int, str | None]:
     return int(Action(int(action))), None
 
 
-def record_trajectory(env, team, index: int, seed: int) -> dict:
-    """Play episode ``index`` with the expert and return its trajectory (format above)."""
-    from maniskill_tidy.policies.base import PublicInfo
-    from maniskill_tidy.policies.channel import Channel
+class TrajectoryLog:
+    """An episode observer (``eval/episode.py``) that keeps the expert's per-step labels."""
 
-    u = env.unwrapped
-    obs, info = env.reset(seed=seed, options={"episode": index})
-    team.reset(PublicInfo.of(u, seed), Channel(u.agent_names), u)
-    steps, done = [], False
-    while not done:
-        before = {a.name: ([*a.cell, a.rotation, a.horizon], a.held) for a in u.agents}
-        actions = team.act(obs, info)
-        labels = team.labels()
-        step = {}
-        for name, action in actions.items():
-            code, target = _encode_action(action)
-            subtask, subgoal = labels[name]
-            (row, col, rot, horizon), held = before[name]
-            x, y = u.house.navgrid.center(row, col)
-            step[name] = {
-                "pose": [round(x, 3), round(y, 3), rot, horizon],
-                "held": held,
+    def start(self, env, team, channel) -> None:
+        self.env, self.steps = env, []
+
+    def decided(self, t: int, actions: dict, labels: dict) -> None:
+        u, step = self.env, {}
+        for a in u.agents:
+            if a.name not in actions:
+                continue
+            code, target = _encode_action(actions[a.name])
+            subtask, subgoal = labels[a.name]
+            x, y = u.house.navgrid.center(*a.cell)
+            step[a.name] = {
+                "pose": [round(x, 3), round(y, 3), a.rotation, a.horizon],
+                "held": a.held,
                 "action": code,
                 "target": target,
                 "subtask": list(astuple(subtask)),
                 "subgoal": list(astuple(subgoal)),
             }
-        steps.append(step)
-        obs, _, terminated, truncated, info = env.step(actions)
-        done = terminated or truncated
+        self.steps.append(step)
+
+
+def record_trajectory(env, team, index: int, seed: int) -> dict:
+    """Play episode ``index`` with the expert and return its trajectory (format above)."""
+    from maniskill_tidy.eval.episode import play_episode
+
+    log = TrajectoryLog()
+    record = play_episode(env, team, index, seed, [log])
+    u = env.unwrapped
     return {
         "episode": u.episode.id,
         "house": u.episode.house_id,
@@ -86,11 +88,11 @@ def record_trajectory(env, team, index: int, seed: int) -> dict:
         "team": [list(c) for c in u.team],
         "agents": list(u.agent_names),
         "seed": seed,
-        "success": bool(info["success"]),
-        "length": max(a.steps for a in u.agents),
-        "k": len(u.misplaced),
+        "success": record.success,
+        "length": record.length,
+        "k": record.k,
         "task_kind": u.episode.task.kind,
-        "steps": steps,
+        "steps": log.steps,
     }
 
 

@@ -1,0 +1,138 @@
+"""One episode, played the one way every path plays it: evaluation, demonstrations, recordings.
+
+This loop is where "what a team may see" (``policies/base.py``) is enforced. A camera-only
+team's agents are made fresh for the episode, each bound to its own outbox; every step each
+active agent is given its own :class:`AgentView` (its observation, read-only, and the outcome
+of its own last action) and nothing else; the communication rounds run through the counting
+:class:`Channel`; each agent then acts on its inbox. A privileged team (the expert) is handed
+the env instead.
+
+Observers watch the episode with full access (they are the benchmark's instruments, not part
+of the team): a recorder, the demonstration writer. Each may define ``start(env, team,
+channel)``, ``decided(t, actions, labels)`` (before the env steps), ``log_step(t, obs,
+actions, info, channel, labels)`` (after) and ``finish(record)``.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+
+from maniskill_tidy.eval.metrics import EpisodeRecord
+from maniskill_tidy.policies.base import (
+    OBSERVATION_KEYS,
+    Agent,
+    AgentAction,
+    AgentView,
+    AnyTeam,
+    Label,
+    PrivilegedTeam,
+    PublicInfo,
+)
+from maniskill_tidy.policies.channel import CENTRAL, Channel, Outbox
+
+
+def _read_only(obs: dict) -> dict[str, np.ndarray]:
+    out = {}
+    for key, value in obs.items():
+        if key not in OBSERVATION_KEYS:
+            raise KeyError(f"observation key {key!r} is not one an agent may see")
+        view = np.asarray(value).view()
+        view.flags.writeable = False
+        out[key] = view
+    return out
+
+
+class Execution:
+    """One team playing one episode: builds its agents and steps them decentrally."""
+
+    def __init__(self, team: AnyTeam, env: Any, seed: int) -> None:
+        self.team, self.env = team, env
+        public = PublicInfo.of(env, seed)
+        self.channel = Channel(public.agents, central=team.central)
+        self.agents: dict[str, Agent] = {}
+        self.central_node = None
+        if isinstance(team, PrivilegedTeam):
+            team.reset(public, env)
+        else:
+            self.agents = {
+                name: team.make_agent(name, public, Outbox(self.channel, name))
+                for name in public.agents
+            }
+            if team.central:
+                self.central_node = team.make_central(public, Outbox(self.channel, CENTRAL))
+        self.t = 0
+
+    def step(self, obs: dict, info: dict) -> dict[str, AgentAction]:
+        """Every active agent's action for this step."""
+        self.channel.new_step()
+        if isinstance(self.team, PrivilegedTeam):
+            return self.team.act(info)
+        active = [a.name for a in self.env.agents if not a.stopped]
+        failed = info.get("failed", {})
+        for name in active:
+            view = AgentView(name, self.t, _read_only(obs[name]), failed.get(name, ""))
+            self.agents[name].observe(view)
+        for r in range(self.team.rounds):
+            self.channel.round = r
+            for name in active:
+                self.agents[name].send(r, self.channel.inbox(name, before_round=r))
+            if self.central_node is not None:
+                self.central_node.send(r, self.channel.inbox(CENTRAL, before_round=r + 1))
+        self.t += 1
+        return {name: self.agents[name].act(self.channel.inbox(name)) for name in active}
+
+    def labels(self) -> dict[str, Label]:
+        if isinstance(self.team, PrivilegedTeam):
+            return self.team.labels()
+        out = {}
+        for name, agent in self.agents.items():
+            label = agent.label()
+            if label is not None:
+                out[name] = label
+        return out
+
+
+def _call(observers, method: str, *args) -> None:
+    for o in observers:
+        fn = getattr(o, method, None)
+        if fn is not None:
+            fn(*args)
+
+
+def play_episode(env, team: AnyTeam, index: int, seed: int, observers=()) -> EpisodeRecord:
+    """Play episode ``index`` of the env's split with ``team``; returns its record."""
+    u = env.unwrapped
+    start = time.perf_counter()
+    obs, info = env.reset(seed=seed, options={"episode": index})
+    execution = Execution(team, u, seed)
+    _call(observers, "start", u, team, execution.channel)
+    done, t, failed = False, 0, 0
+    while not done:
+        actions = execution.step(obs, info)
+        labels = {n: label for n, label in execution.labels().items() if n in actions}
+        _call(observers, "decided", t, actions, labels)
+        obs, _, terminated, truncated, info = env.step(actions)
+        t += 1
+        failed += sum(1 for reason in info["failed"].values() if reason)
+        _call(observers, "log_step", t, obs, actions, info, execution.channel, labels)
+        done = terminated or truncated
+    misplaced = set(u.misplaced)
+    record = EpisodeRecord(
+        episode=u.episode.id,
+        task_kind=u.episode.task.kind,
+        k=len(misplaced),
+        success=bool(info["success"]),
+        reasonable=int(info["n_reasonable"]),
+        found=len(misplaced & set(info["picked"])),
+        length=max(a.steps for a in u.agents),
+        comm=execution.channel.total,
+        agents=len(u.agents),
+        seed=seed,
+        seconds=round(time.perf_counter() - start, 3),
+        failed_actions=failed,
+    )
+    _call(observers, "finish", record)
+    return record

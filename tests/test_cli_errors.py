@@ -1,0 +1,100 @@
+"""Bad input gets one line naming what was wrong and what was expected, exit status 2, and
+nothing half-written."""
+
+from __future__ import annotations
+
+import gzip
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from maniskill_tidy.envs.episodes import default_dataset
+
+
+def cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "maniskill_tidy.cli", *args],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        cwd=cwd,
+    )
+
+
+def one_line_error(p: subprocess.CompletedProcess, *words: str) -> str:
+    assert p.returncode == 2, (p.returncode, p.stderr[-2000:])
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1, p.stderr
+    for w in words:
+        assert w in lines[0], (w, lines[0])
+    return lines[0]
+
+
+@pytest.mark.parametrize("houses", ["0", "-1"])
+def test_generate_refuses_no_houses(tmp_path, houses):
+    out = tmp_path / "ds"
+    one_line_error(cli("generate", "--houses", houses, "--out", str(out)), "--houses", "at least 1")
+    assert not out.exists()
+
+
+def test_validate_flags_a_dataset_without_houses(tmp_path):
+    out = tmp_path / "empty"
+    out.mkdir()
+    (out / "manifest.json").write_text(
+        json.dumps({"schema_version": "1.0", "files": {}, "dataset_hash": "x"})
+    )
+    p = cli("validate", str(out))
+    assert p.returncode != 0 and "no houses" in p.stdout
+
+
+def _copy_default(tmp_path: Path) -> Path:
+    out = tmp_path / "ds"
+    shutil.copytree(default_dataset(), out)
+    return out
+
+
+def test_eval_refuses_a_tampered_shard_naming_it(tmp_path):
+    ds = _copy_default(tmp_path)
+    shard = ds / "test" / "shard-0000.json.gz"
+    payload = json.loads(gzip.decompress(shard.read_bytes()))
+    payload["tasks"][0]["k"] += 1  # still a valid shard: only the hash can tell
+    shard.write_bytes(gzip.compress(json.dumps(payload).encode()))
+    p = cli("eval", "--policy", "expert", "--dataset", str(ds), "--out", str(tmp_path / "o"))
+    one_line_error(p, "test/shard-0000.json.gz", "sha256")
+    assert not (tmp_path / "o").exists()
+
+
+def test_eval_on_a_missing_or_truncated_dataset_is_one_line(tmp_path):
+    p = cli("eval", "--policy", "expert", "--dataset", str(tmp_path / "nowhere"))
+    one_line_error(p, "manifest.json")
+    ds = _copy_default(tmp_path)
+    shard = ds / "test" / "shard-0000.json.gz"
+    shard.write_bytes(shard.read_bytes()[:200])
+    one_line_error(cli("eval", "--policy", "expert", "--dataset", str(ds)), "shard-0000")
+    (ds / "test" / "shard-0000.json.gz").unlink()
+    one_line_error(cli("eval", "--policy", "expert", "--dataset", str(ds)), "missing")
+
+
+def test_eval_refuses_bad_arguments(tmp_path):
+    one_line_error(cli("eval", "--policy", "nobody"), "unknown policy")
+    one_line_error(cli("eval", "--policy", "expert", "--episodes", "x"), "--episodes")
+    one_line_error(cli("eval", "--policy", "expert", "--setting", "III"), "unknown setting")
+
+
+def test_replay_verifies_the_recording_first(tmp_path):
+    bad = tmp_path / "broken.rrd"
+    bad.write_bytes(b"RRF2" + b"\x00garbage" * 100)
+    one_line_error(cli("replay", str(bad)), "damaged")
+    one_line_error(cli("replay", str(tmp_path / "none.rrd")), "not an .rrd recording")
+
+
+def test_a_team_preset_error_names_the_file(tmp_path):
+    preset = tmp_path / "team.json"
+    preset.write_text(json.dumps({"team": [[1, 0, 0], [0, 1, 1]]}))
+    one_line_error(
+        cli("eval", "--policy", "expert", "--setting", str(preset)), str(preset), "Nav=1"
+    )

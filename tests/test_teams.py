@@ -1,0 +1,348 @@
+"""What a team may see, what every team sends, and that every team plays a whole episode."""
+
+from __future__ import annotations
+
+import dataclasses
+import types
+
+import numpy as np
+import pytest
+
+from maniskill_tidy.envs.actions import MIN_PIXELS, Action
+from maniskill_tidy.eval import runner
+from maniskill_tidy.eval.episode import play_episode
+from maniskill_tidy.eval.runner import RunConfig, evaluate, make_env
+from maniskill_tidy.knowledge import load_catalog, load_placement
+from maniskill_tidy.policies import POLICIES, make_team
+from maniskill_tidy.policies.base import (
+    EXPLORE,
+    OBSERVATION_KEYS,
+    Agent,
+    AgentView,
+    CentralNode,
+    PublicInfo,
+    SubTask,
+    Team,
+)
+from maniskill_tidy.policies.channel import CENTRAL, Channel, Outbox
+from maniskill_tidy.policies.heuristic import HeuristicAgent
+
+SETTING_I = 3
+
+
+# ---------------------------------------------------------------------- a spy through the runner
+class SpyAgent(Agent):
+    log: list = []  # class-level on purpose: the test reads what every spy was given
+
+    def __init__(self, name, public, outbox) -> None:
+        super().__init__(name, public, outbox)
+        SpyAgent.log.append(("made", name, public, outbox.sender))
+
+    def observe(self, view: AgentView) -> None:
+        SpyAgent.log.append(("view", self.name, view))
+
+    def send(self, round, inbox) -> None:
+        self.outbox.send(CENTRAL, [1.0, 2.0], "state")
+
+    def act(self, inbox):
+        SpyAgent.log.append(("inbox", self.name, list(inbox)))
+        return Action.RotateLeft
+
+
+class SpyCentral(CentralNode):
+    def send(self, round, inbox) -> None:
+        SpyAgent.log.append(("central", list(inbox)))
+        for name in self.public.agents:
+            self.outbox.send(name, [3.0], "assignment")
+
+
+class SpyTeam(Team):
+    name = "spy"
+    central = True
+
+    def make_agent(self, name, public, outbox):
+        return SpyAgent(name, public, outbox)
+
+    def make_central(self, public, outbox):
+        return SpyCentral(public, outbox)
+
+
+def test_a_spy_team_receives_exactly_what_it_may_see(tmp_path, monkeypatch):
+    monkeypatch.setitem(POLICIES, "spy", SpyTeam)
+    SpyAgent.log = []
+    cfg = RunConfig("spy", "I", "test", None, 1)
+    monkeypatch.setattr(runner, "make_env", _short_env(make_env, steps=4))
+    evaluate(cfg, tmp_path, workers=1, progress=False)
+    made = [e for e in SpyAgent.log if e[0] == "made"]
+    assert [e[1] for e in made] == ["agent_0", "agent_1", "agent_2"]
+    for _, name, public, sender in made:
+        assert sender == name  # each agent sends as itself only
+        assert {f.name for f in dataclasses.fields(public)} == {
+            "house",
+            "agents",
+            "capabilities",
+            "episode_id",
+            "seed",
+            "instances",
+        }
+        assert public.house.objects == []  # the floor plan, not where any object lies
+    views = [e for e in SpyAgent.log if e[0] == "view"]
+    assert len(views) == 4 * 3
+    for _, name, view in views:
+        assert {f.name for f in dataclasses.fields(view)} == {"name", "step", "obs", "failed"}
+        assert view.name == name and isinstance(view.failed, str)
+        assert set(view.obs) == OBSERVATION_KEYS  # its own camera and state, nothing more
+        assert all(not v.flags.writeable for v in view.obs.values())
+        assert tuple(view.obs["capability"]) == ((1, 0, 0), (1, 0, 1), (1, 1, 1))[int(name[-1])]
+    # the inbox holds only what was sent to that agent: the central node's assignment
+    for _, name, inbox in (e for e in SpyAgent.log if e[0] == "inbox"):
+        assert [(m.sender, m.receiver, m.kind) for m in inbox] == [(CENTRAL, name, "assignment")]
+    # the central node sees the uploads, nothing else
+    for _, inbox in (e for e in SpyAgent.log if e[0] == "central"):
+        assert sorted(m.sender for m in inbox) == ["agent_0", "agent_1", "agent_2"]
+        assert all(m.receiver == CENTRAL for m in inbox)
+
+
+def _short_env(make, steps: int):
+    def short(cfg, images):
+        env = make(cfg, images)
+        env.unwrapped.max_steps = steps
+        return env
+
+    return short
+
+
+def test_an_outbox_sends_only_as_its_owner_and_receivers_get_copies():
+    channel = Channel(["a", "b"])
+    out = Outbox(channel, "a")
+    vector = np.zeros(3, np.float32)
+    out.send("b", vector, "x")
+    vector[0] = 5.0  # the sender changes its own array afterwards
+    (message,) = channel.inbox("b")
+    assert message.sender == "a" and message.vector[0] == 0.0
+    with pytest.raises(ValueError):
+        message.vector[1] = 1.0  # read-only
+    assert out.peers == ["b"] and not out.has_central
+    with pytest.raises(KeyError, match="unknown endpoint"):
+        Outbox(channel, "z")
+    with pytest.raises(ValueError, match="NaN"):
+        out.send("b", [np.nan], "x")
+
+
+# ---------------------------------------------------------------------- agents share no state
+def _mutables(root, skip: set[int]) -> dict[int, object]:
+    """Mutable objects reachable from ``root`` (dicts, lists, sets, arrays, instances)."""
+    found, stack = {}, [root]
+    atoms = (str, bytes, int, float, bool, type(None), np.generic, type, range)
+    while stack:
+        o = stack.pop()
+        if id(o) in skip or id(o) in found or isinstance(o, atoms):
+            continue
+        if isinstance(o, (types.FunctionType, types.MethodType, types.BuiltinFunctionType)):
+            continue
+        if isinstance(o, dict):
+            found[id(o)] = o
+            stack += list(o.keys()) + list(o.values())
+        elif isinstance(o, (list, set)):
+            found[id(o)] = o
+            stack += list(o)
+        elif isinstance(o, (tuple, frozenset)):
+            stack += list(o)
+        elif isinstance(o, np.ndarray):
+            found[id(o)] = o
+        elif hasattr(o, "__dict__"):
+            found[id(o)] = o
+            stack += list(vars(o).values())
+    return found
+
+
+@pytest.mark.parametrize("policy", sorted(p for p, cls in POLICIES.items() if not cls.privileged))
+def test_agents_of_a_team_share_code_and_public_data_not_state(policy, small_house_public):
+    public = small_house_public
+    channel = Channel(public.agents, central=True)
+    team = make_team(policy)
+    agents = [team.make_agent(n, public, Outbox(channel, n)) for n in public.agents]
+    shared_ok: set[int] = set()
+    for allowed in (public, channel, load_placement(), load_catalog()):
+        shared_ok |= set(_mutables(allowed, set()))
+    reach = [_mutables(a, shared_ok) for a in agents]
+    for i in range(len(agents)):
+        for j in range(i + 1, len(agents)):
+            common = set(reach[i]) & set(reach[j])
+            assert not common, f"{policy}: agents share {[type(reach[i][k]) for k in common]}"
+
+
+@pytest.fixture(scope="module")
+def small_house_public():
+    from maniskill_tidy.envs.episodes import default_dataset
+    from maniskill_tidy.tasks.dataset import load_dataset
+
+    house = next(iter(load_dataset(default_dataset(), "test").houses.values()))
+    house = dataclasses.replace(house, objects=[])
+    agents = ["agent_0", "agent_1", "agent_2"]
+    return PublicInfo(house, agents, [(1, 0, 0), (1, 0, 1), (1, 1, 1)], "e", 0, {})
+
+
+# ---------------------------------------------------------------------- every team, a whole episode
+class Traffic:
+    """Per step: the agents that acted, and the messages on the channel."""
+
+    def start(self, env, team, channel) -> None:
+        self.env, self.steps = env, []
+
+    def decided(self, t, actions, labels) -> None:
+        u = self.env
+        held = {a.held for a in u.agents if a.held}
+        reasonable = set(u.evaluate()["reasonable"])
+        misplaced = {
+            u.manipulation.seg_of_object[o] for o in u.misplaced if o not in reasonable | held
+        }
+        in_view = {}
+        for name in actions:
+            seg = u._last_seg.get(name)
+            ids, counts = np.unique(seg, return_counts=True) if seg is not None else ([], [])
+            in_view[name] = any(
+                int(i) in misplaced and n >= MIN_PIXELS for i, n in zip(ids, counts, strict=True)
+            )
+        self.pending = (sorted(actions), in_view)
+
+    def log_step(self, t, obs, actions, info, channel, labels) -> None:
+        active, in_view = self.pending
+        self.steps.append((active, list(channel.step_messages), in_view))
+
+
+# One episode per team; the episode index is one where the team has something to do and talk
+# about (the scouts see a misplaced object) on the shipped default dataset.
+EPISODE = 10
+
+
+@pytest.fixture(scope="module")
+def played():
+    out = {}
+    envs = {}
+    for policy in sorted(POLICIES):
+        team = make_team(policy)
+        cfg = RunConfig(policy, "I", "test", None, "standard")
+        key = (tuple(map(tuple, team.team_override or [])), cfg.env_kwargs(False)["obs_mode"])
+        if key not in envs:
+            envs[key] = make_env(cfg)  # the team's own observation mode, as eval runs it
+        traffic = Traffic()
+        record = play_episode(envs[key], team, EPISODE, EPISODE, [traffic])
+        out[policy] = (record, traffic.steps)
+    for env in envs.values():
+        env.close()
+    return out
+
+
+def test_every_team_plays_a_whole_episode(played):
+    assert set(played) >= {
+        "random",
+        "sa",
+        "heuristic-none",
+        "heuristic-detection",
+        "heuristic-broadcast",
+        "heuristic-central",
+        "expert",
+    }
+    for policy, (record, steps) in played.items():
+        assert 1 <= record.length <= 300 and len(steps) == record.length, policy
+        assert record.agents == (1 if policy == "sa" else SETTING_I), policy
+    assert played["expert"][0].success, "the expert solves this episode"
+    assert played["random"][0].length == 300  # Random never stops
+
+
+def test_silent_teams_send_nothing(played):
+    for policy in ("random", "sa", "heuristic-none", "expert"):
+        record, steps = played[policy]
+        assert record.comm == 0 and all(not messages for _, messages, _ in steps), policy
+
+
+def test_broadcast_sends_410_to_each_other_agent_per_active_agent_and_step(played):
+    record, steps = played["heuristic-broadcast"]
+    for active, messages, _ in steps:
+        assert sum(m.dims for m in messages) == 410 * (SETTING_I - 1) * len(active)
+        for sender in active:
+            mine = [m for m in messages if m.sender == sender]
+            assert sorted({m.receiver for m in mine}) == sorted(
+                f"agent_{i}" for i in range(SETTING_I) if f"agent_{i}" != sender
+            )
+            assert sorted(m.dims for m in mine) == [10, 10, 400, 400]
+    assert record.comm == sum(sum(m.dims for m in msgs) for _, msgs, _ in steps)
+
+
+def test_detection_sends_only_while_a_misplaced_object_is_in_view(played):
+    record, steps = played["heuristic-detection"]
+    senders = 0
+    for _, messages, in_view in steps:
+        for sender in {m.sender for m in messages}:
+            senders += 1
+            assert in_view[sender], "sent without a misplaced object in view"
+            assert sum(m.dims for m in messages if m.sender == sender) == 410 * (SETTING_I - 1)
+    assert senders > 0 and record.comm > 0, "pick an episode where a misplaced object is seen"
+    quiet = sum(1 for _, messages, _ in steps if not messages)
+    assert quiet > 0, "a conditional pattern that always sends is broadcast"
+
+
+def test_central_team_talks_only_with_its_central_node(played):
+    record, steps = played["heuristic-central"]
+    for active, messages, _ in steps:
+        up = [m for m in messages if m.receiver == CENTRAL]
+        down = [m for m in messages if m.sender == CENTRAL]
+        assert len(up) + len(down) == len(messages)  # no agent-to-agent messages
+        assert sum(m.dims for m in up) == 410 * len(active)
+        assert all(m.dims == 6 for m in down) and {m.receiver for m in down} <= set(active)
+
+
+# ---------------------------------------------------------------------- blocked moves
+def test_two_agents_without_messages_get_past_each_other():
+    """heuristic-none: two robots that block each other's path handle the failed moves (step
+    aside, replan) and both reach their goals; neither knows where the other is going."""
+    from maniskill_tidy.policies.viewpoints import Viewpoint
+    from maniskill_tidy.policies.walker import Job, Leg
+
+    team = make_team("heuristic-none")
+    env = make_env(RunConfig("heuristic-none", "I", "test", None, "standard"), images=True)
+    u = env.unwrapped
+    obs, info = env.reset(seed=0, options={"episode": 0})
+    nav = u.house.navgrid
+    free = {(r, c) for r in range(nav.shape[0]) for c in range(nav.shape[1]) if nav.free(r, c)}
+    # a straight row of 6 free cells; agent_0 and agent_2 start side by side in the middle, both
+    # facing +y, so they sidestep along the row into each other without seeing each other
+    row, col = next((r, c) for r, c in sorted(free) if all((r, c + k) in free for k in range(6)))
+    cells = {"agent_0": (row, col + 2), "agent_2": (row, col + 3)}
+    goals = {"agent_0": (row, col + 5), "agent_2": (row, col)}
+    for i, a in enumerate(u.agents):
+        a.cell = cells.get(a.name, a.cell)
+        a.rotation = 90 if a.name in cells else a.rotation
+        u._place_robot(i)
+    obs = u.get_obs()
+    public = PublicInfo.of(u, 0)
+    channel = Channel(public.agents)
+    agents = {n: team.make_agent(n, public, Outbox(channel, n)) for n in public.agents}
+    assert all(isinstance(a, HeuristicAgent) for a in agents.values())
+    reached = set()
+    failed = {n: "" for n in agents}
+    blocked_moves = 0
+    for t in range(60):
+        actions = {}
+        for name, agent in agents.items():
+            agent.observe(AgentView(name, t, obs[name], failed[name]))
+            if name not in goals:  # the high scout only nods, out of the way
+                actions[name] = Action.LookDown if t % 2 else Action.LookUp
+                continue
+            if agent.job is None or agent.job.target != "goal":  # the test sets where to go
+                leg = Leg([Viewpoint(goals[name], agent.state.rotation, 0, 0.0)])
+                agent.job = Job("explore", "goal", leg, SubTask(EXPLORE))
+            agent.covered[goals[name]] = False
+            actions[name] = agent.act([])
+        obs, _, _, _, info = env.step(actions)
+        failed = {n: info["failed"].get(n, "") for n in agents}
+        blocked_moves += sum("blocked by agent" in f for f in failed.values())
+        for name, goal in goals.items():
+            if u.agents[int(name[-1])].cell == goal:
+                reached.add(name)
+        if reached == set(goals):
+            break
+    env.close()
+    assert blocked_moves > 0, "the set-up should make them bump into each other"
+    assert reached == set(goals), f"only {reached} got through in 60 steps"
