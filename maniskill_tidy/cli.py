@@ -320,10 +320,15 @@ def build_parser() -> argparse.ArgumentParser:
         description="Evaluate a team. The standard protocol (the default) plays the first start "
         "of every meta-task of the split (200 episodes on the 120-house test split), "
         "deterministically (episode i gets seed SEED + i); --episodes all plays all five starts "
-        "(the paper's 1000), --episodes N an evenly spread subset. Every metric gets a 95%% "
+        "(the paper's 1000), --episodes N an evenly spread subset. Every metric gets a 95 % "
         "bootstrap interval over episodes (seeded) in summary.json.",
     )
-    ev.add_argument("--policy", required=True, help="a team name (see `maniskill-tidy policies`)")
+    ev.add_argument(
+        "--policy",
+        required=True,
+        help="a team name: expert, random, sa, heuristic-none, heuristic-detection, "
+        "heuristic-broadcast, heuristic-central (an unknown name lists what is registered)",
+    )
     ev.add_argument("--setting", default="I", help="I, II or a preset JSON file")
     ev.add_argument("--split", default="test", choices=("train", "val", "test"))
     ev.add_argument("--task-type", default="all", choices=("all", "single", "cross"))
