@@ -233,7 +233,7 @@ def test_leaderboard_assembles_ces_intervals_and_notes(tmp_path):
     }
     broadcast = [c.strip() for c in rows["**heuristic-broadcast**"]]
     lo, hi = runs["heuristic-broadcast"]["metrics"]["All"]["ci95"]["Success"]
-    assert broadcast[2] == f"0.500 [{lo:.2f}, {hi:.2f}]"  # Success All with its interval
+    assert broadcast[2] == f"0.500 [{lo:.3f}, {hi:.3f}]"  # Success All with its interval
     assert broadcast[-1] == f"{ces(0.5, 0.25, 820.0):.1f}"  # CES All against our SA row
     assert ces(0.5, 0.25, 820.0) == pytest.approx(10000 * 0.25 / 820)
     central_row = next(k for k in rows if "heuristic-central" in k)

@@ -69,7 +69,7 @@ def _fmt(v, column: str) -> str:
 
 def _interval(m: dict, column: str) -> str:
     ci = (m.get("ci95") or {}).get(column)
-    return f" [{ci[0]:.2f}, {ci[1]:.2f}]" if ci else ""
+    return f" [{ci[0]:.3f}, {ci[1]:.3f}]" if ci else ""
 
 
 def _our_row(summary: dict, sa: dict | None) -> list[str]:
@@ -147,7 +147,16 @@ def plot(runs_by_setting: dict[str, dict[str, dict]], reference: dict, out: Path
     for ax, setting in zip(axes[0], settings, strict=True):
         for policy, s in runs_by_setting.get(setting, {}).items():
             m = s["metrics"]["All"]
-            ax.scatter(m["ACm"], m["Success"], s=60, zorder=3)
+            lo, hi = (m.get("ci95") or {}).get("Success", (m["Success"], m["Success"]))
+            ax.errorbar(
+                m["ACm"],
+                m["Success"],
+                yerr=[[m["Success"] - lo], [hi - m["Success"]]],
+                fmt="o",
+                markersize=7,
+                capsize=3,
+                zorder=3,
+            )
             ax.annotate(
                 policy,
                 (m["ACm"], m["Success"]),
