@@ -2,7 +2,7 @@
 PY := .venv/bin/python
 DEMO_DIR := out/demo
 
-.PHONY: setup test test-slow demo bench leaderboard lint clean
+.PHONY: setup test test-slow demo bench leaderboard train lint clean
 
 setup:
 	@bash scripts/setup.sh
@@ -45,6 +45,14 @@ leaderboard: setup
 	  for p in heuristic-none heuristic-detection heuristic-broadcast heuristic-central; do \
 	    $(EVAL) --policy $$p --setting $$s || exit 1; done; done
 	$(PY) -m maniskill_tidy.cli leaderboard
+
+# The paper's learned perception modules (issue 12), on CPU: render the views of the 120-house
+# dataset's houses (resumable per house), train every stage with and without the knowledge
+# graph (resumable per epoch), then report on the test split. Writes agents/perception/.
+train: setup
+	test -f $(DATA120)/manifest.json || $(PY) -m maniskill_tidy.cli generate --houses 120 --seed 0 --workers 2 --out $(DATA120)
+	$(PY) -m maniskill_tidy.cli train perception --dataset $(DATA120) --out agents/perception
+	$(PY) -m maniskill_tidy.cli perception-report --agents agents/perception --dataset $(DATA120)
 
 lint: setup
 	$(PY) -m ruff check maniskill_tidy tests

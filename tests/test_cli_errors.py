@@ -98,3 +98,19 @@ def test_a_team_preset_error_names_the_file(tmp_path):
     one_line_error(
         cli("eval", "--policy", "expert", "--setting", str(preset)), str(preset), "Nav=1"
     )
+
+
+def test_train_refuses_a_folder_that_is_not_a_dataset(tmp_path):
+    one_line_error(
+        cli("train", "perception", "--dataset", str(tmp_path), "--out", str(tmp_path / "a")),
+        "manifest.json",
+    )
+    assert not (tmp_path / "a").exists()
+
+
+def test_perception_report_without_agents_names_the_command(tmp_path):
+    one_line_error(
+        cli("perception-report", "--agents", str(tmp_path / "none"), "--work", str(tmp_path)),
+        "card.json",
+        "train perception",
+    )

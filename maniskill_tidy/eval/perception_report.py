@@ -294,3 +294,31 @@ def report(agents: Path, dataset: Path, split: str, work: Path, workers: int = 2
     write_json(agents / f"{split}_metrics.json", results)
     draw_report(results, agents / f"{split}.png")
     return table + note + f"\nwrote {agents / f'{split.upper()}.md'} and {agents / f'{split}.png'}"
+
+
+def draw_curves(cards: dict[str, dict], path: Path) -> None:
+    """Train and val loss per epoch of every stage (both variants' reasoning stages)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    panels = [("visual", "knowledge"), ("scene", "knowledge"), ("room", "knowledge"),
+              ("reasoning", "knowledge"), ("reasoning", "no-knowledge")]  # fmt: skip
+    panels = [(s, v) for s, v in panels if v in cards and s in cards[v]["stages"]]
+    fig, axes = plt.subplots(1, len(panels), figsize=(3.2 * len(panels), 3.0), squeeze=False)
+    for ax, (stage, variant) in zip(axes[0], panels, strict=True):
+        st = cards[variant]["stages"][stage]
+        epochs = [c["epoch"] for c in st["curve"]]
+        ax.plot(epochs, [c["train"] for c in st["curve"]], label="train")
+        ax.plot(epochs, [c["val"] for c in st["curve"]], label="val")
+        ax.axvline(st["best_epoch"], color="gray", ls=":", lw=0.8)
+        title = stage if stage != "reasoning" else f"reasoning ({variant})"
+        ax.set_title(title, fontsize=9)
+        ax.set_xlabel("epoch")
+    axes[0][0].set_ylabel("loss")
+    axes[0][0].legend(fontsize=8)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

@@ -30,7 +30,11 @@ import torch
 import torch.nn.functional as F  # noqa: N812
 from tqdm import tqdm
 
-from maniskill_tidy.eval.perception_report import compute_priors, perception_metrics
+from maniskill_tidy.eval.perception_report import (
+    compute_priors,
+    draw_curves,
+    perception_metrics,
+)
 from maniskill_tidy.knowledge import load_catalog
 from maniskill_tidy.knowledge.word_vectors import load_word_vectors
 from maniskill_tidy.models.knowledge_graph import build_graph
@@ -349,6 +353,7 @@ def train_perception(
         cards[variant]["val"] = perception_metrics(model, val, priors)
         save_agent(model, agents / variant)
         write_card(agents / variant, cards[variant], priors)
+    draw_curves(cards, agents / "curves.png")
     return cards
 
 
