@@ -184,9 +184,9 @@ def test_short_training_learns(houses, views, tmp_path):
     assert m["receptacle"]["top1_reasonable_in_house"] > m["receptacle"]["global_prior"]
 
 
-def _reasoning(houses, views, checkpoint: Path, epochs: int):
+def _reasoning(houses, views, checkpoint: Path, epochs: int, seed: int = 0):
     """The reasoning stage alone, on frames embedded by a seeded untrained encoder."""
-    torch.manual_seed(0)
+    torch.manual_seed(seed)
     model = new_model(houses, True)
     embed_frames(model, views)
     cfg = TrainConfig(batch=32, epochs={"reasoning": epochs})
@@ -204,6 +204,14 @@ def test_same_seed_same_weights_and_resume_is_exact(houses, views, tmp_path):
     _reasoning(houses, views, tmp_path / "c.pt", 1)
     c = _reasoning(houses, views, tmp_path / "c.pt", 2)
     for (k, x), y in zip(a.state_dict().items(), c.state_dict().values(), strict=True):
+        assert torch.equal(x, y), k
+
+
+def test_a_checkpoint_made_on_other_encoders_is_started_over(houses, views, tmp_path):
+    _reasoning(houses, views, tmp_path / "ck.pt", 1, seed=0)
+    resumed = _reasoning(houses, views, tmp_path / "ck.pt", 1, seed=1)
+    fresh = _reasoning(houses, views, tmp_path / "fresh.pt", 1, seed=1)
+    for (k, x), y in zip(fresh.state_dict().items(), resumed.state_dict().values(), strict=True):
         assert torch.equal(x, y), k
 
 
@@ -228,3 +236,13 @@ def test_views_refuse_another_configuration(views_dir, tmp_path):
     with pytest.raises(ValueError, match="every"):
         build_views(tmp_path, None, replace(VIEWS, every=3), workers=1, progress=False)
     assert [p.name for p in (tmp_path / "train").iterdir()] == ["manifest.json"]
+
+
+def test_average_precision_by_hand():
+    from maniskill_tidy.eval.perception_report import average_precision
+
+    # ranks: 0.9 (hit), 0.8 (miss), 0.7 (hit): precisions 1 and 2/3
+    score = np.array([0.7, 0.9, 0.8])
+    truth = np.array([True, True, False])
+    assert average_precision(score, truth) == pytest.approx((1 + 2 / 3) / 2)
+    assert average_precision(score, np.zeros(3, bool)) == 0.0

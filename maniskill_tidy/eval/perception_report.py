@@ -134,16 +134,28 @@ def perception_metrics(model, views, priors: dict, batch: int = 512) -> dict:
     )
     answers = views.answers.numpy().astype(bool)
     pred = q_logits.numpy() > 0
-    prior = np.asarray(priors["query_rate"])[None] > 0.5
-    prior = np.broadcast_to(prior, answers.shape)
+    rate = np.broadcast_to(np.asarray(priors["query_rate"])[None], answers.shape)
+    prior = rate > 0.5
     out["scene"] = {
         "accuracy": float((pred == answers).mean()),
         "f1": _prf(pred, answers)["f1"],
         "prior_accuracy": float((prior == answers).mean()),
         "prior_f1": _prf(prior, answers)["f1"],
         "positive_share": float(answers.mean()),
+        "average_precision": average_precision(q_logits.numpy().ravel(), answers.ravel()),
+        "prior_average_precision": average_precision(rate.ravel(), answers.ravel()),
     }
     return out
+
+
+def average_precision(score: np.ndarray, truth: np.ndarray) -> float:
+    """Mean precision at the rank of every positive, best score first (ties in input order)."""
+    order = np.argsort(-score, kind="stable")
+    hits = truth[order].astype(bool)
+    if not hits.any():
+        return 0.0
+    precision = np.cumsum(hits) / np.arange(1, len(hits) + 1)
+    return float(precision[hits].mean())
 
 
 def _pr_curve(score: np.ndarray, truth: np.ndarray, points: int = 50) -> list[list[float]]:
@@ -196,6 +208,8 @@ def format_report(results: dict[str, dict], split: str) -> str:
     )
     row("scene-encoder query F1 (positives)", lambda r: r["scene"]["f1"],
         f"{s['prior_f1']:.3f} (per-query prior)")  # fmt: skip
+    row("scene-encoder query average precision", lambda r: r["scene"]["average_precision"],
+        f"{s['prior_average_precision']:.3f} (per-query prior)")  # fmt: skip
     return "\n".join(rows)
 
 

@@ -31,6 +31,7 @@ import hashlib
 import io
 import json
 import math
+import time
 from dataclasses import dataclass
 from multiprocessing import get_context
 from pathlib import Path
@@ -314,6 +315,7 @@ def build_views(
         for h, idx in sorted(by_house.items())
         if not (directory / f"{h}.npz").exists()
     ]
+    started = time.perf_counter()
     bar = tqdm(total=len(by_house), initial=len(by_house) - len(jobs), unit="house",
                desc=f"views {cfg.split}", disable=not progress)  # fmt: skip
     if jobs and workers <= 1:
@@ -332,6 +334,10 @@ def build_views(
                 fut.result()
                 bar.update(1)
     bar.close()
+    seconds = time.perf_counter() - started if jobs else 0.0
+    old = directory / "manifest.json"
+    if old.is_file():  # wall time accumulates over the runs that rendered houses
+        seconds += json.loads(old.read_text()).get("seconds", 0.0)
     digest = hashlib.sha256()
     frames = detections = 0
     for shard in sorted(directory.glob("house_*.npz")):
@@ -351,6 +357,7 @@ def build_views(
         "frames": frames,
         "detections": detections,
         "views_hash": digest.hexdigest(),
+        "seconds": round(seconds, 1),
         "code_version": code_version(),
     }
     write_atomic(directory / "manifest.json", json.dumps(manifest, indent=1).encode())
