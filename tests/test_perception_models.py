@@ -104,17 +104,16 @@ def test_knowledge_graph_counts_train_placements(houses):
     assert g.features.shape == (K + 4, 100)
 
 
-def test_region_answers_follow_the_crop_convention(houses):
-    house = houses[0]
+def test_region_answers_follow_the_crop_convention():
     k = load_catalog().category_index("Apple")
     pose = (0.0, 0.0, 0.0)  # facing +x: ahead is +x, left is +y
-    ahead_left = region_answers(house, [("Apple", 1.0, 1.0)], pose, 20, 0.25)
+    ahead_left = region_answers([("Apple", 1.0, 1.0)], pose, 20, 0.25)
     assert ahead_left[:, k].tolist() == [True, False, False, False]
-    behind_right = region_answers(house, [("Apple", -1.0, -1.0)], pose, 20, 0.25)
+    behind_right = region_answers([("Apple", -1.0, -1.0)], pose, 20, 0.25)
     assert behind_right[:, k].tolist() == [False, False, False, True]
-    far = region_answers(house, [("Apple", 3.0, 0.0)], pose, 20, 0.25)  # beyond 2.5 m
+    far = region_answers([("Apple", 3.0, 0.0)], pose, 20, 0.25)  # beyond 2.5 m
     assert not far.any()
-    turned = region_answers(house, [("Apple", 1.0, 1.0)], (0.0, 0.0, 90.0), 20, 0.25)
+    turned = region_answers([("Apple", 1.0, 1.0)], (0.0, 0.0, 90.0), 20, 0.25)
     assert turned[:, k].tolist() == [False, True, False, False]  # now ahead and to the right
 
 

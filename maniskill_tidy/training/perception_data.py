@@ -27,6 +27,7 @@ finished houses. ``manifest.json`` holds the dataset hash and a hash of the shar
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import io
 import json
@@ -63,9 +64,7 @@ class ViewsConfig:
     houses: int | None = None  # only the split's first N houses (tests, quick looks)
 
 
-def region_answers(
-    house: House, things: list[tuple[str, float, float]], pose, size: int, cell: float
-):
+def region_answers(things: list[tuple[str, float, float]], pose, size: int, cell: float):
     """(REGIONS**2, K) booleans: is a thing of category k centred in sub-region r of the crop.
 
     Uses the crop's convention (``semantic_map.egocentric_crop``): row 0 is the far end ahead
@@ -118,7 +117,7 @@ class ViewCollector:
     def start(self, env, team, channel) -> None:
         self.env = env
         house = env.house
-        public = House(**{**house.__dict__, "objects": []})  # what an agent knows of the house
+        public = dataclasses.replace(house, objects=[])  # what an agent knows (PublicInfo)
         self.public = public
         self.maps = {
             a: SemanticMap(public, env.instances, MapConfig(stride=MAP_STRIDE))
@@ -170,7 +169,7 @@ class ViewCollector:
         self.frames["seen"].append(seen.astype(np.float16))
         self.frames["crop"].append(np.packbits(crop.reshape(-1)))
         self.frames["room"].append(ROOM_TYPES.index(self.room_type[room]))
-        answers = region_answers(u.house, self._things(), pose, *_crop_shape(m))
+        answers = region_answers(self._things(), pose, *_crop_shape(m))
         self.frames["answers"].append(np.packbits(answers.reshape(-1)))
         self.frames["pose"].append(np.asarray(pose, dtype=np.float32))
         held = int(o["held"])
