@@ -113,6 +113,26 @@ def test_floor_lands_at_height_zero_for_low_and_high_cameras(env, agent):
     assert np.percentile(np.abs(floor[:, 2]), 99) < 0.03
 
 
+def test_the_same_frames_give_the_same_map(env):
+    """open3d emits back-projected points in an order that varies between calls; the map
+    must not depend on it (fusion keeps the last label written to a voxel)."""
+    env.reset(seed=0, options={"episode": 0})
+    frames = [env.step({a: int(Action.RotateRight) for a in env.agent_names})[0]["agent_2"]
+              for _ in range(4)]  # fmt: skip
+    maps = []
+    for _ in range(6):
+        m = SemanticMap(env.house, env.instances)
+        for f in frames:
+            m.update(f)
+        maps.append(m)
+    for m in maps[1:]:
+        assert np.array_equal(m.voxels, maps[0].voxels)
+    label = maps[0].labels[frames[0]["segmentation"]]
+    _, _, pixels = maps[0]._backproject(frames[0]["depth"], label, frames[0])
+    flat = pixels[:, 0] * label.shape[1] + pixels[:, 1]
+    assert (np.diff(flat) > 0).all()  # row-major, whatever order open3d chose
+
+
 def test_category_channels_put_objects_in_their_cells(surveys):
     hits = misses = wrong = checked = 0
     for m, house in surveys.values():

@@ -250,7 +250,11 @@ class SemanticMap:
             return np.zeros((0, 3)), np.zeros(0, dtype=np.uint8), np.zeros((0, 2), np.int64)
         colours = cloud.point.colors.numpy()
         pixels = colours[:, 1:].astype(np.int64)
-        return cloud.point.positions.numpy(), colours[:, 0].astype(np.uint8), pixels
+        # open3d emits the points in an order that varies between calls (parallel chunks);
+        # fusion keeps the last label written to a voxel, so fix the order: row-major pixels.
+        order = np.argsort(pixels[:, 0] * w + pixels[:, 1], kind="stable")
+        positions = cloud.point.positions.numpy()[order]
+        return positions, colours[order, 0].astype(np.uint8), pixels[order]
 
     def _fuse(self, points: np.ndarray, labels: np.ndarray) -> np.ndarray:
         """Write the points' labels into their voxels; returns the flat column indices hit."""
