@@ -141,6 +141,16 @@ def _perception_report(args: argparse.Namespace) -> int:
     return 0
 
 
+def _policies(args: argparse.Namespace) -> int:
+    from maniskill_tidy.policies import POLICIES
+
+    for name, cls in POLICIES.items():
+        comm = getattr(cls, "communication", "none")
+        seen = getattr(cls, "perception", "")
+        print(f"{name:22s} communication: {comm:10s} perception: {seen}")
+    return 0
+
+
 def _validate(args: argparse.Namespace) -> int:
     from maniskill_tidy.tasks.validate import validate_dataset
 
@@ -386,6 +396,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     ev.add_argument("--out", default=".", help="writes eval/results/... and recordings/... here")
     ev.set_defaults(func=_eval)
+
+    po = sub.add_parser("policies", help="the team names `eval --policy` takes")
+    po.set_defaults(func=_policies)
 
     lb = sub.add_parser("leaderboard", help="eval/LEADERBOARD.md and a plot from run summaries")
     lb.add_argument("--root", default="eval", help="folder holding results/ (default eval)")
