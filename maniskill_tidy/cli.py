@@ -397,7 +397,7 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--out", default=".", help="writes eval/results/... and recordings/... here")
     ev.set_defaults(func=_eval)
 
-    po = sub.add_parser("policies", help="the team names `eval --policy` takes")
+    po = sub.add_parser("policies", help="the teams `eval --policy` takes, what they see and send")
     po.set_defaults(func=_policies)
 
     lb = sub.add_parser("leaderboard", help="eval/LEADERBOARD.md and a plot from run summaries")
