@@ -398,17 +398,17 @@ class HeteroTidyEnv(BaseEnv):
         return counts, camera
 
     # ------------------------------------------------------------------ task state
+    def is_reasonable(self, oid: str) -> bool:
+        """D where the object rests now (held, on the floor or nowhere known: not reasonable)."""
+        st = self.hs.state[oid]
+        if st.receptacle in ("held", "unknown", FLOOR):
+            return False
+        f = self.hs.furniture[st.receptacle]
+        rtype = f.surface(st.surface).receptacle_type
+        return self.knowledge.D(self.manipulation.types[oid], rtype, self.hs.room_type[f.room])
+
     def _reasonable(self) -> list[str]:
-        out = []
-        for oid in self.misplaced:
-            st = self.hs.state[oid]
-            if st.receptacle in ("held", "unknown", FLOOR):
-                continue
-            f = self.hs.furniture[st.receptacle]
-            rtype = f.surface(st.surface).receptacle_type
-            if self.knowledge.D(self.manipulation.types[oid], rtype, self.hs.room_type[f.room]):
-                out.append(oid)
-        return out
+        return [oid for oid in self.misplaced if self.is_reasonable(oid)]
 
     def evaluate(self) -> dict:
         reasonable = self._reasonable()

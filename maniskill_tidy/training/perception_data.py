@@ -128,14 +128,16 @@ class ViewCollector:
         self.room_type = {r.id: r.type for r in house.rooms}
 
     def log_step(self, t, obs, actions, info, channel, labels) -> None:
-        u = self.env
+        u, things = self.env, None
         for a in u.agents:
             if a.stopped:
                 continue
             o = obs[a.name]
             self.maps[a.name].update(o)
             if t % self.every == 0:
-                self._sample(a.name, o)
+                if things is None:  # where everything stands now, once per sampled step
+                    things = self._things()
+                self._sample(a.name, o, things)
 
     def _things(self) -> list[tuple[str, float, float]]:
         u = self.env
@@ -146,7 +148,7 @@ class ViewCollector:
                 out.append((u.manipulation.types[oid], float(x), float(y)))
         return out
 
-    def _sample(self, name: str, o: dict) -> None:
+    def _sample(self, name: str, o: dict, things: list[tuple[str, float, float]]) -> None:
         u, catalog = self.env, load_catalog()
         pose = o["pose"]
         room = self.public.room_at(float(pose[0]), float(pose[1]))
@@ -169,7 +171,7 @@ class ViewCollector:
         self.frames["seen"].append(seen.astype(np.float16))
         self.frames["crop"].append(np.packbits(crop.reshape(-1)))
         self.frames["room"].append(ROOM_TYPES.index(self.room_type[room]))
-        answers = region_answers(self._things(), pose, *_crop_shape(m))
+        answers = region_answers(things, pose, *_crop_shape(m))
         self.frames["answers"].append(np.packbits(answers.reshape(-1)))
         self.frames["pose"].append(np.asarray(pose, dtype=np.float32))
         held = int(o["held"])
@@ -186,16 +188,11 @@ class ViewCollector:
             if receptacle == FLOOR:
                 rest = catalog.receptacles.index(FLOOR)
             elif receptacle:
-                f = u.house.furniture_by_id()[receptacle]
+                f = u.hs.furniture[receptacle]
                 rest = catalog.receptacles.index(f.surface(surface).receptacle_type)
             else:
                 rest = len(catalog.receptacles)  # rests on nothing the floor plan knows
-            misplaced = True
-            if state.receptacle != FLOOR:
-                f = u.hs.furniture[state.receptacle]
-                misplaced = not u.knowledge.D(
-                    d.type, f.surface(state.surface).receptacle_type, self.room_type[f.room]
-                )
+            misplaced = not u.is_reasonable(d.object_id)
             rec, rooms = reasonable_targets(d.type, self.places)
             self.dets["frame"].append(frame_index)
             self.dets["type"].append(catalog.category_index(d.type))

@@ -247,17 +247,21 @@ def fit_stage(
     }
 
 
+def _type_vectors() -> torch.Tensor:
+    """(K, word dim): the GloVe vectors of the catalog's categories, in channel order."""
+    vectors = load_word_vectors()
+    return torch.from_numpy(np.stack([vectors[c] for c in load_catalog().categories]))
+
+
 def new_model(train_houses: list, knowledge: bool) -> PerceptionModel:
     catalog = load_catalog()
-    vectors = load_word_vectors()
-    type_vectors = torch.from_numpy(np.stack([vectors[c] for c in catalog.categories]))
     cfg = PerceptionConfig(
         categories=len(catalog.categories),
         receptacles=len(catalog.receptacles),
         regions=REGIONS**2,
         knowledge=knowledge,
     )
-    return PerceptionModel(cfg, type_vectors, build_graph(train_houses))
+    return PerceptionModel(cfg, _type_vectors(), build_graph(train_houses))
 
 
 def _views_hash(root: Path) -> str:
@@ -381,11 +385,8 @@ def load_agent(folder: Path) -> PerceptionModel:
         )
     saved = torch.load(path, weights_only=False)
     cfg = PerceptionConfig(**saved["config"])
-    catalog = load_catalog()
-    vectors = load_word_vectors()
-    type_vectors = torch.from_numpy(np.stack([vectors[c] for c in catalog.categories]))
     graph = _graph_from_state(saved["state"], saved["nodes"])
-    model = PerceptionModel(cfg, type_vectors, graph)
+    model = PerceptionModel(cfg, _type_vectors(), graph)
     model.load_state_dict({k: v.float() if v.is_floating_point() else v
                            for k, v in saved["state"].items()})  # fmt: skip
     return model.eval()
