@@ -9,8 +9,9 @@ the env instead.
 
 Observers watch the episode with full access (they are the benchmark's instruments, not part
 of the team): a recorder, the demonstration writer. Each may define ``start(env, team,
-channel)``, ``decided(t, actions, labels)`` (before the env steps), ``log_step(t, obs,
-actions, info, channel, labels)`` (after) and ``finish(record)``.
+channel)``, ``observed(t, obs, info)`` (the observation the team decides on at step ``t``),
+``decided(t, actions, labels)`` (before the env steps), ``log_step(t, obs, actions, info,
+channel, labels)`` (after) and ``finish(record)``.
 """
 
 from __future__ import annotations
@@ -111,6 +112,7 @@ def play_episode(env, team: AnyTeam, index: int, seed: int, observers=()) -> Epi
     _call(observers, "start", u, team, execution.channel)
     done, t, failed = False, 0, 0
     while not done:
+        _call(observers, "observed", t, obs, info)
         actions = execution.step(obs, info)
         labels = {n: label for n, label in execution.labels().items() if n in actions}
         _call(observers, "decided", t, actions, labels)

@@ -113,3 +113,40 @@ class PerceptionModel(nn.Module):
             fp,
             weights,
         )
+
+    @torch.no_grad()
+    def step_features(
+        self,
+        rgb: torch.Tensor,
+        seen: torch.Tensor,
+        crop: torch.Tensor,
+        det_row: torch.Tensor,
+        det_type: torch.Tensor,
+        det_rest: torch.Tensor,
+        det_numeric: torch.Tensor,
+    ) -> dict[str, torch.Tensor]:
+        """What the decision modules read of B frames (frozen): sv, sm, and fd, fp of the
+        detection the detector finds most likely misplaced (zeros without one), its
+        probability ``mis`` and whether there was a detection (``det``).
+
+        ``rgb`` (B, 64, 64, 3) uint8, ``seen`` (B, K), ``crop`` (B, G, G, K + 2) 0/1; the
+        detections are flat, ``det_row`` naming each one's frame."""
+        sv = self.sv(rgb)
+        out = {"sv": sv, "sm": self.sm(crop)}
+        b, d = len(sv), self.cfg.dim
+        fd, fp = torch.zeros(b, d), torch.zeros(b, d)
+        mis, det = torch.zeros(b), torch.zeros(b)
+        if len(det_row):
+            sr = self.sr(seen[det_row], sv[det_row])
+            r = self.reason(sv[det_row], sr, det_type, det_rest, det_numeric)
+            p = torch.softmax(r.det, -1)[:, 1]
+            best = torch.full((b,), -1.0).scatter_reduce(0, det_row, p, "amax")
+            # the first detection of each frame that reaches its frame's best probability
+            first = torch.full((b,), len(p)).scatter_reduce(
+                0, det_row, torch.where(p == best[det_row], torch.arange(len(p)), len(p)), "amin"
+            )
+            has = first < len(p)
+            fd[has], fp[has] = r.fd[first[has]], r.fp[first[has]]
+            mis[has], det[has] = p[first[has]], 1.0
+        out.update(fd=fd, fp=fp, mis=mis, det=det)
+        return out

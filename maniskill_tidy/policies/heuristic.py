@@ -36,6 +36,7 @@ from maniskill_tidy.perception.detections import (
     seen_robots,
     surface_table,
 )
+from maniskill_tidy.perception.frame_inputs import camera_pitch
 from maniskill_tidy.perception.semantic_map import MapConfig, SemanticMap
 from maniskill_tidy.policies.base import (
     EXPLORE,
@@ -330,12 +331,6 @@ def planner_cells(nav, xy: np.ndarray, shape) -> tuple[np.ndarray, np.ndarray]:
     cols = np.floor((xy[:, 0] - nav.origin[0]) / nav.cell).astype(np.int64)
     on = (rows >= 0) & (rows < shape[0]) & (cols >= 0) & (cols < shape[1])
     return rows[on], cols[on]
-
-
-def camera_pitch(extrinsics: np.ndarray) -> int:
-    """The camera's horizon in degrees (positive looks down), read off its world pose."""
-    forward = np.asarray(extrinsics)[2, :3]  # OpenCV z axis in world coordinates
-    return int(round(np.degrees(-np.arcsin(np.clip(forward[2], -1, 1))) / 30.0)) * 30
 
 
 class HeuristicTeam(Team):

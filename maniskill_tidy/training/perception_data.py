@@ -28,30 +28,29 @@ finished houses. ``manifest.json`` holds the dataset hash and a hash of the shar
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import io
 import json
 import math
-import time
 from dataclasses import dataclass
-from multiprocessing import get_context
 from pathlib import Path
 
-import cv2
 import numpy as np
 from tqdm import tqdm
 
 from maniskill_tidy.houses.schema import House
-from maniskill_tidy.knowledge import FLOOR, ROOM_TYPES, load_catalog, load_placement
-from maniskill_tidy.perception.detections import detect_objects, resting_place, surface_table
-from maniskill_tidy.perception.semantic_map import MapConfig, SemanticMap
+from maniskill_tidy.knowledge import ROOM_TYPES, load_catalog, load_placement
+from maniskill_tidy.perception.frame_inputs import DETECTION_NUMERIC, IMAGE, FrameReader
+from maniskill_tidy.perception.semantic_map import SemanticMap
 from maniskill_tidy.tasks.dataset import write_atomic
+from maniskill_tidy.training.house_jobs import (
+    check_same_config,
+    run_house_jobs,
+    shards_digest,
+    total_seconds,
+)
 
 FORMAT_VERSION = 1
-IMAGE = 64  # visual encoder input side (pixels)
 REGIONS = 2  # sub-regions per crop side: the scene encoder answers REGIONS**2 x K queries
-MAP_STRIDE = 2  # as the heuristic agents map
-DETECTION_NUMERIC = 7  # box (4), distance, image share, lowest point
 
 
 @dataclass(frozen=True)
@@ -119,11 +118,7 @@ class ViewCollector:
         house = env.house
         public = dataclasses.replace(house, objects=[])  # what an agent knows (PublicInfo)
         self.public = public
-        self.maps = {
-            a: SemanticMap(public, env.instances, MapConfig(stride=MAP_STRIDE))
-            for a in env.agent_names
-        }
-        self.surfaces = surface_table(public)
+        self.readers = {a: FrameReader(public, env.instances) for a in env.agent_names}
         self.places = house_places(house)
         self.room_type = {r.id: r.type for r in house.rooms}
 
@@ -132,12 +127,12 @@ class ViewCollector:
         for a in u.agents:
             if a.stopped:
                 continue
-            o = obs[a.name]
-            self.maps[a.name].update(o)
+            reader = self.readers[a.name]
+            reader.map.update(obs[a.name])
             if t % self.every == 0:
                 if things is None:  # where everything stands now, once per sampled step
                     things = self._things()
-                self._sample(a.name, o, things)
+                self._sample(reader, obs[a.name], things)
 
     def _things(self) -> list[tuple[str, float, float]]:
         u = self.env
@@ -148,66 +143,30 @@ class ViewCollector:
                 out.append((u.manipulation.types[oid], float(x), float(y)))
         return out
 
-    def _sample(self, name: str, o: dict, things: list[tuple[str, float, float]]) -> None:
-        u, catalog = self.env, load_catalog()
+    def _sample(self, reader: FrameReader, o: dict, things: list) -> None:
         pose = o["pose"]
         room = self.public.room_at(float(pose[0]), float(pose[1]))
         if room is None:
             return
-        m = self.maps[name]
-        seg = np.asarray(o["segmentation"])
-        h, w = seg.shape
+        f = reader.read(o, update=False)
         frame_index = len(self.frames["room"])
-        seen = np.zeros(len(catalog.categories), dtype=np.float32)
-        ids, counts = np.unique(seg, return_counts=True)
-        for sid, n in zip(ids, counts, strict=True):
-            inst = u.instances.get(int(sid))
-            if inst is not None and inst.type in m.categories:
-                seen[catalog.category_index(inst.type)] += n / seg.size
-        crop = m.local_crop(pose) > 0
-        self.frames["rgb"].append(
-            cv2.resize(o["rgb"], (IMAGE, IMAGE), interpolation=cv2.INTER_AREA)
-        )
-        self.frames["seen"].append(seen.astype(np.float16))
-        self.frames["crop"].append(np.packbits(crop.reshape(-1)))
+        self.frames["rgb"].append(f.rgb)
+        self.frames["seen"].append(f.seen.astype(np.float16))
+        self.frames["crop"].append(np.packbits(f.crop.reshape(-1)))
         self.frames["room"].append(ROOM_TYPES.index(self.room_type[room]))
-        answers = region_answers(things, pose, *_crop_shape(m))
+        answers = region_answers(things, pose, *_crop_shape(reader.map))
         self.frames["answers"].append(np.packbits(answers.reshape(-1)))
         self.frames["pose"].append(np.asarray(pose, dtype=np.float32))
-        held = int(o["held"])
-        for d in detect_objects(m.last_frame, u.instances):
-            if d.seg_id == held or d.type not in catalog.pickupable:
+        catalog = load_catalog()
+        for i, oid in enumerate(f.det_object):
+            if self.env.hs.state[oid].receptacle in ("held", "unknown"):
                 continue
-            state = u.hs.state[d.object_id]
-            if state.receptacle in ("held", "unknown"):
-                continue
-            rows, cols = np.nonzero(seg == d.seg_id)
-            if not len(rows):
-                continue
-            receptacle, surface, _ = resting_place(self.public, d, self.surfaces)
-            if receptacle == FLOOR:
-                rest = catalog.receptacles.index(FLOOR)
-            elif receptacle:
-                f = u.hs.furniture[receptacle]
-                rest = catalog.receptacles.index(f.surface(surface).receptacle_type)
-            else:
-                rest = len(catalog.receptacles)  # rests on nothing the floor plan knows
-            misplaced = not u.is_reasonable(d.object_id)
-            rec, rooms = reasonable_targets(d.type, self.places)
+            misplaced = not self.env.is_reasonable(oid)
+            rec, rooms = reasonable_targets(catalog.categories[f.det_type[i]], self.places)
             self.dets["frame"].append(frame_index)
-            self.dets["type"].append(catalog.category_index(d.type))
-            self.dets["rest"].append(rest)
-            self.dets["numeric"].append(
-                [
-                    rows.min() / h,
-                    cols.min() / w,
-                    (rows.max() + 1) / h,
-                    (cols.max() + 1) / w,
-                    d.distance / 5.0,
-                    math.sqrt(d.pixels / (h * w)),
-                    d.bottom,
-                ]
-            )
+            self.dets["type"].append(int(f.det_type[i]))
+            self.dets["rest"].append(int(f.det_rest[i]))
+            self.dets["numeric"].append(f.det_numeric[i])
             self.dets["misplaced"].append(misplaced)
             self.dets["receptacles"].append(rec[1])
             self.dets["rooms"].append(rooms[1])
@@ -245,7 +204,7 @@ def _crop_shape(m: SemanticMap) -> tuple[int, float]:
 _worker: dict = {}
 
 
-def _init(dataset: str | None, cfg: ViewsConfig) -> None:
+def _init(dataset: str | None, cfg: ViewsConfig):
     import gymnasium as gym
 
     import maniskill_tidy  # noqa: F401
@@ -261,6 +220,7 @@ def _init(dataset: str | None, cfg: ViewsConfig) -> None:
         reward_mode="none",
     )
     _worker.update(env=env, cfg=cfg)
+    return env.close
 
 
 def _house_views(job: tuple[str, list[int], str]) -> tuple[str, int, int]:
@@ -304,75 +264,38 @@ def build_views(
     if cfg.houses is not None:
         by_house = dict(sorted(by_house.items())[: cfg.houses])
     directory = Path(out) / cfg.split
-    _check_same_config(directory / "manifest.json", dataset_hash, cfg)
+    want = {"dataset_hash": dataset_hash, "tasks_per_house": cfg.tasks_per_house,
+            "every": cfg.every, "setting": cfg.setting, "seed": cfg.seed}  # fmt: skip
+    if cfg.houses is not None:
+        want["houses"] = len(by_house)
+    check_same_config(directory / "manifest.json", want)
     directory.mkdir(parents=True, exist_ok=True)
     jobs = [
         (h, idx, str(directory / f"{h}.npz"))
         for h, idx in sorted(by_house.items())
         if not (directory / f"{h}.npz").exists()
     ]
-    started = time.perf_counter()
     bar = tqdm(total=len(by_house), initial=len(by_house) - len(jobs), unit="house",
                desc=f"views {cfg.split}", disable=not progress)  # fmt: skip
-    if jobs and workers <= 1:
-        _init(dataset, cfg)
-        for job in jobs:
-            _house_views(job)
-            bar.update(1)
-        _worker["env"].close()
-    elif jobs:
-        from concurrent.futures import ProcessPoolExecutor, as_completed
-
-        with ProcessPoolExecutor(
-            workers, mp_context=get_context("spawn"), initializer=_init, initargs=(dataset, cfg)
-        ) as pool:
-            for fut in as_completed([pool.submit(_house_views, j) for j in jobs]):
-                fut.result()
-                bar.update(1)
-    bar.close()
-    seconds = time.perf_counter() - started if jobs else 0.0
-    old = directory / "manifest.json"
-    if old.is_file():  # wall time accumulates over the runs that rendered houses
-        seconds += json.loads(old.read_text()).get("seconds", 0.0)
-    digest = hashlib.sha256()
+    seconds = run_house_jobs(jobs, _init, (dataset, cfg), _house_views, workers, bar)
     frames = detections = 0
     for shard in sorted(directory.glob("house_*.npz")):
-        digest.update(shard.name.encode() + hashlib.sha256(shard.read_bytes()).digest())
         with np.load(shard) as z:
             frames += len(z["room"])
             detections += len(z["det_type"])
     manifest = {
         "format_version": FORMAT_VERSION,
+        **want,
         "split": cfg.split,
-        "dataset_hash": dataset_hash,
         "houses": len(by_house),
-        "tasks_per_house": cfg.tasks_per_house,
-        "every": cfg.every,
-        "setting": cfg.setting,
-        "seed": cfg.seed,
         "frames": frames,
         "detections": detections,
-        "views_hash": digest.hexdigest(),
-        "seconds": round(seconds, 1),
+        "views_hash": shards_digest(directory, "house_*.npz"),
+        "seconds": total_seconds(directory / "manifest.json", seconds),
         "code_version": code_version(),
     }
     write_atomic(directory / "manifest.json", json.dumps(manifest, indent=1).encode())
     return manifest
-
-
-def _check_same_config(path: Path, dataset_hash: str, cfg: ViewsConfig) -> None:
-    """Refuse to mix shards of two configurations in one folder."""
-    if not path.is_file():
-        return
-    old = json.loads(path.read_text())
-    want = {"dataset_hash": dataset_hash, "tasks_per_house": cfg.tasks_per_house,
-            "every": cfg.every, "setting": cfg.setting, "seed": cfg.seed}  # fmt: skip
-    differ = [k for k, v in want.items() if old.get(k) != v]
-    if differ or old.get("houses") != (cfg.houses or old.get("houses")):
-        raise ValueError(
-            f"{path.parent} holds views built with other settings ({', '.join(differ) or 'houses'}"
-            "); remove that folder or pass another --work folder"
-        )
 
 
 def load_views(directory: Path) -> dict[str, np.ndarray]:

@@ -1,0 +1,164 @@
+"""The hierarchical decision of the paper (Sections 5.3-5.4, Table 2): per agent, F_s -> HanGrCom
+-> F_a (sub-task) -> F_g (sub-goal). One :class:`AgentDecision` per agent of the team:
+heterogeneous agents do not share weights.
+
+Per agent and step, from the frozen perception features (``PerceptionModel.step_features``)::
+
+    (va, pose, held, failed, fd, fp, mis) ──F_s (linear + LSTM)──▶ sf
+    sf ──HanGrCom generators──▶ qry, key, val, inv      (exchanged: see models/hangrcom.py)
+    (sf, inn, int) ──F_a: LSTM → Linear(·, 256) = se → heads──▶ Explore/Place, o, p, r
+    (se, sm, sp, sv) ──F_g: LSTM → Linear(·, 256) → heads──▶ dx 9, dy 9, drot 4, ope 4, stop 2
+
+Sizes: the paper's LSTMs have 512 hidden units; here ``hidden`` (128 by default) keeps the
+shipped fp16 checkpoints a few MB per agent; the structure is the paper's. F_s's input adds to
+the paper's (va, pose, fd, fp) the held object's type, whether the agent's own last action
+failed, and the detector's probability for the chosen detection: all of it the agent's own.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+from torch import nn
+
+from maniskill_tidy.models.hangrcom import DELTA, MU, HanGrCom
+
+POSE = 5  # x / 10 m, y / 10 m, cos and sin of the heading, camera pitch / 60 degrees
+HEADS_TASK = ("kind", "object", "receptacle", "room")
+HEADS_GOAL = ("dx", "dy", "drot", "ope", "stop")
+
+
+@dataclass(frozen=True)
+class DecisionConfig:
+    categories: int = 119  # K (held object types)
+    objects: int = 62  # o: pickupable types
+    receptacles: int = 46  # p
+    rooms: int = 4  # r
+    perception: int = 256  # sv, sm, fd, fp
+    state: int = 128  # sf
+    key: int = 32  # qry, key
+    value: int = 64  # val
+    inter: int = 64  # inv
+    hidden: int = 128  # F_a and F_g LSTMs (the paper's 512, shrunk)
+    embed: int = 256  # se and F_g's last hidden layer (Table 2)
+    communication: str = "hangrcom"
+    mu: float = MU
+    delta: float = DELTA
+
+
+def encode_pose(pose: torch.Tensor) -> torch.Tensor:
+    """(…, 4) x, y, rotation, pitch -> (…, POSE)."""
+    yaw = torch.deg2rad(pose[..., 2])
+    return torch.stack(
+        [pose[..., 0] / 10, pose[..., 1] / 10, torch.cos(yaw), torch.sin(yaw), pose[..., 3] / 60],
+        dim=-1,
+    )
+
+
+class StateExtractor(nn.Module):
+    """F_s: linear layers and an LSTM over the agent's own state and detector features."""
+
+    def __init__(self, cfg: DecisionConfig) -> None:
+        super().__init__()
+        self.held = nn.Embedding(cfg.categories + 1, 16)  # index 0: holds nothing
+        width = 3 + POSE + 16 + 1 + 2 * cfg.perception + 2
+        self.fuse = nn.Sequential(nn.Linear(width, cfg.state), nn.ReLU())
+        self.lstm = nn.LSTM(cfg.state, cfg.state, batch_first=True)
+
+    def forward(self, x: dict[str, torch.Tensor], state=None):
+        """Inputs (B, T, ·) -> sf (B, T, state) and the LSTM state."""
+        z = torch.cat(
+            [x["va"], encode_pose(x["pose"]), self.held(x["held"] + 1), x["failed"][..., None],
+             x["fd"], x["fp"], x["mis"][..., None], x["det"][..., None]],
+            dim=-1,
+        )  # fmt: skip
+        return self.lstm(self.fuse(z), state)
+
+
+class SubTaskPredictor(nn.Module):
+    """F_a: LSTM -> Linear(hidden, 256) = se -> Explore/Place, o, p, r."""
+
+    def __init__(self, cfg: DecisionConfig, width: int) -> None:
+        super().__init__()
+        self.lstm = nn.LSTM(width, cfg.hidden, batch_first=True)
+        self.embed = nn.Sequential(nn.Linear(cfg.hidden, cfg.embed), nn.ReLU())
+        self.heads = nn.ModuleDict(
+            {"kind": nn.Linear(cfg.embed, 2), "object": nn.Linear(cfg.embed, cfg.objects),
+             "receptacle": nn.Linear(cfg.embed, cfg.receptacles),
+             "room": nn.Linear(cfg.embed, cfg.rooms)}
+        )  # fmt: skip
+
+    def forward(self, x: torch.Tensor, state=None):
+        h, state = self.lstm(x, state)
+        se = self.embed(h)
+        return se, {k: head(se) for k, head in self.heads.items()}, state
+
+
+class SubGoalPredictor(nn.Module):
+    """F_g: LSTM -> Linear(hidden, 256) -> dx 9, dy 9, drot 4, ope 4, stop 2."""
+
+    def __init__(self, cfg: DecisionConfig) -> None:
+        super().__init__()
+        self.pose = nn.Sequential(nn.Linear(POSE, 32), nn.ReLU())  # sp
+        self.lstm = nn.LSTM(cfg.embed + 2 * cfg.perception + 32, cfg.hidden, batch_first=True)
+        self.hidden = nn.Sequential(nn.Linear(cfg.hidden, cfg.embed), nn.ReLU())
+        self.heads = nn.ModuleDict(
+            {"dx": nn.Linear(cfg.embed, 9), "dy": nn.Linear(cfg.embed, 9),
+             "drot": nn.Linear(cfg.embed, 4), "ope": nn.Linear(cfg.embed, 4),
+             "stop": nn.Linear(cfg.embed, 2)}
+        )  # fmt: skip
+
+    def forward(self, se, x: dict[str, torch.Tensor], state=None):
+        sp = self.pose(encode_pose(x["pose"]))
+        h, state = self.lstm(torch.cat([se, x["sm"], sp, x["sv"]], dim=-1), state)
+        h = self.hidden(h)
+        return {k: head(h) for k, head in self.heads.items()}, state
+
+
+class AgentDecision(nn.Module):
+    """One agent's F_s, HanGrCom generators, F_a and F_g."""
+
+    def __init__(self, cfg: DecisionConfig) -> None:
+        super().__init__()
+        self.cfg = cfg
+        self.state = StateExtractor(cfg)
+        self.comm = HanGrCom(cfg.state, cfg.key, cfg.value, cfg.inter)
+        self.subtask = SubTaskPredictor(cfg, cfg.state + cfg.value + cfg.inter)
+        self.subgoal = SubGoalPredictor(cfg)
+
+    def decide(self, sf, inn, inter, x, states=(None, None)):
+        """F_a and F_g on (B, T, ·) inputs: logits of every head and the LSTM states."""
+        se, task, s_task = self.subtask(torch.cat([sf, inn, inter], dim=-1), states[0])
+        goal, s_goal = self.subgoal(se, x, states[1])
+        return {**task, **goal}, (s_task, s_goal)
+
+
+class TeamDecision(nn.Module):
+    """The agents of one team, for training on whole episodes (soft or hard HanGrCom)."""
+
+    def __init__(self, cfg: DecisionConfig, agents: int) -> None:
+        super().__init__()
+        self.cfg = cfg
+        self.agents = nn.ModuleList(AgentDecision(cfg) for _ in range(agents))
+
+    def forward(self, x: list[dict[str, torch.Tensor]], present: torch.Tensor, hard: bool = False):
+        """``x[n]``: agent n's inputs (B, T, ·); ``present`` (B, T, N). Returns per agent the
+        logits of every head (B, T, ·) and T (B, T, N, N)."""
+        from maniskill_tidy.models.hangrcom import attention, soft
+        from maniskill_tidy.models.hangrcom import hard as hard_mode
+
+        sf = [agent.state(xn)[0] for agent, xn in zip(self.agents, x, strict=True)]
+        gens = [agent.comm(s) for agent, s in zip(self.agents, sf, strict=True)]
+        stack = {k: torch.stack([g[k] for g in gens], dim=2) for k in gens[0]}
+        t = attention(stack["qry"], stack["key"], present)
+        if hard:
+            inn, inter = hard_mode(t, stack["val"], stack["inv"], present, self.cfg.mu,
+                                   self.cfg.delta)  # fmt: skip
+        else:
+            inn, inter = soft(t, stack["val"], stack["inv"])
+        out = [
+            agent.decide(sf[n], inn[:, :, n], inter[:, :, n], x[n])[0]
+            for n, agent in enumerate(self.agents)
+        ]
+        return out, t

@@ -1,0 +1,129 @@
+"""What the learned modules read off one agent's observation, computed one way everywhere.
+
+The perception views (``training/perception_data.py``), the demonstrations with features
+(``training/decision_data.py``) and the learned team at evaluation (``policies/learned.py``)
+all call :meth:`FrameReader.read`, so a model sees at evaluation exactly what it was trained on.
+A reader holds one agent's :class:`SemanticMap` and nothing else the agent could not know: the
+public floor plan and the segmentation's label table.
+
+Per frame (:class:`FrameInputs`):
+
+- ``rgb``: the colour image area-averaged to 64 x 64 (the visual encoder's input);
+- ``seen``: the share of the image each category covers (the room classifier's "detected
+  objects"; segmentation is ground truth, standing in for Mask R-CNN);
+- ``crop``: the map's egocentric crop, G x G x (K + 2) cells of 0.25 m (the scene encoder's);
+- ``pose``: x, y, rotation and camera pitch; ``held``: the held object's type index or -1;
+- one detection per pickupable object in view, not held (``sl``'s inputs): type, the receptacle
+  type it rests on (back-projected pixels + the floor plan's surfaces), and 7 numbers: image
+  box (4), distance / 5 m, sqrt of image share, lowest point.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from maniskill_tidy.houses.schema import House
+from maniskill_tidy.knowledge import FLOOR, load_catalog
+from maniskill_tidy.perception.detections import detect_objects, resting_place, surface_table
+from maniskill_tidy.perception.semantic_map import MapConfig, SemanticMap
+
+IMAGE = 64  # visual encoder input side (pixels)
+MAP_STRIDE = 2  # every other pixel, as the heuristic agents map
+DETECTION_NUMERIC = 7  # box (4), distance, image share, lowest point
+
+
+@dataclass(frozen=True)
+class FrameInputs:
+    rgb: np.ndarray  # (64, 64, 3) uint8
+    seen: np.ndarray  # (K,) float32
+    crop: np.ndarray  # (G, G, K + 2) bool
+    pose: np.ndarray  # (4,) float32: x, y, rotation, camera pitch (degrees)
+    held: int  # type index in the catalog's categories, or -1
+    det_type: np.ndarray  # (n,) category indices
+    det_rest: np.ndarray  # (n,) receptacle indices; len(receptacles) = rests on nothing known
+    det_numeric: np.ndarray  # (n, 7) float32
+    det_object: tuple[str, ...]  # (n,) object ids, read off the segmentation's label table
+    det_position: np.ndarray  # (n, 3) measured positions (metres)
+
+
+def camera_pitch(extrinsics: np.ndarray) -> int:
+    """The camera's horizon in degrees (positive looks down), read off its world pose."""
+    forward = np.asarray(extrinsics)[2, :3]  # OpenCV z axis in world coordinates
+    return int(round(np.degrees(-np.arcsin(np.clip(forward[2], -1, 1))) / 30.0)) * 30
+
+
+class FrameReader:
+    """One agent's map and the per-frame inputs of the learned modules (create one per episode)."""
+
+    def __init__(self, house: House, instances: dict, stride: int = MAP_STRIDE) -> None:
+        self.house, self.instances = house, instances
+        self.catalog = load_catalog()
+        self.map = SemanticMap(house, instances, MapConfig(stride=stride))
+        self.surfaces = surface_table(house)
+        self.furniture = house.furniture_by_id()
+        self._pickupable = set(self.catalog.pickupable)
+
+    def read(self, obs: dict, update: bool = True) -> FrameInputs:
+        """Fuse ``obs`` into the map (unless ``update`` is False) and read the inputs off it."""
+        if update:
+            self.map.update(obs)
+        catalog = self.catalog
+        seg = np.asarray(obs["segmentation"])
+        seen = np.zeros(len(catalog.categories), dtype=np.float32)
+        ids, counts = np.unique(seg, return_counts=True)
+        for sid, n in zip(ids, counts, strict=True):
+            inst = self.instances.get(int(sid))
+            if inst is not None and inst.type in self.map.categories:
+                seen[catalog.category_index(inst.type)] += n / seg.size
+        pose = np.asarray(obs["pose"], dtype=np.float32)
+        held_seg = int(obs["held"])
+        held = catalog.category_index(self.instances[held_seg].type) if held_seg else -1
+        rgb = np.asarray(obs["rgb"]) if "rgb" in obs else np.zeros((IMAGE, IMAGE, 3), np.uint8)
+        types, rests, numeric, objects, positions = [], [], [], [], []
+        h, w = seg.shape
+        for d in detect_objects(self.map.last_frame, self.instances):
+            if d.seg_id == held_seg or d.type not in self._pickupable:
+                continue
+            rows, cols = np.nonzero(seg == d.seg_id)
+            if not len(rows):
+                continue
+            types.append(catalog.category_index(d.type))
+            rests.append(self._rest(d))
+            numeric.append(
+                [
+                    rows.min() / h,
+                    cols.min() / w,
+                    (rows.max() + 1) / h,
+                    (cols.max() + 1) / w,
+                    d.distance / 5.0,
+                    math.sqrt(d.pixels / (h * w)),
+                    d.bottom,
+                ]
+            )
+            objects.append(d.object_id)
+            positions.append(d.position)
+        return FrameInputs(
+            rgb=cv2.resize(rgb, (IMAGE, IMAGE), interpolation=cv2.INTER_AREA),
+            seen=seen,
+            crop=self.map.local_crop(pose[:3]) > 0,
+            pose=np.array([*pose[:3], camera_pitch(obs["extrinsics"])], dtype=np.float32),
+            held=held,
+            det_type=np.asarray(types, dtype=np.int64),
+            det_rest=np.asarray(rests, dtype=np.int64),
+            det_numeric=np.asarray(numeric, dtype=np.float32).reshape(-1, DETECTION_NUMERIC),
+            det_object=tuple(objects),
+            det_position=np.asarray(positions, dtype=np.float32).reshape(-1, 3),
+        )
+
+    def _rest(self, d) -> int:
+        receptacles = self.catalog.receptacles
+        receptacle, surface, _ = resting_place(self.house, d, self.surfaces)
+        if receptacle == FLOOR:
+            return receptacles.index(FLOOR)
+        if receptacle:
+            return receptacles.index(self.furniture[receptacle].surface(surface).receptacle_type)
+        return len(receptacles)  # rests on nothing the floor plan knows

@@ -1,0 +1,440 @@
+"""Behaviour cloning of the hierarchical decision (the paper's Eq. 2) from demonstrations.
+
+``maniskill-tidy train agents/hangrcom.yaml --setting I``:
+
+1. makes the demonstrations with features if they are missing (``training/decision_data.py``,
+   resumable per house);
+2. runs the frozen perception model (``agents/perception/...``) over every row once and caches
+   the features (sv, sm, and fd, fp of the most likely misplaced detection) in the work folder;
+3. trains one :class:`AgentDecision` per agent of the setting's team on whole episodes
+   (HanGrCom needs every agent's step together): Loss_subtask + Loss_subgoal, all weights 1,
+   cross-entropy on every head, a head without a label (no object in an Explore sub-task)
+   left out. A ``hard_fraction`` of the batches runs HanGrCom's inference mode (thresholded
+   links and groups) so that training meets what evaluation runs;
+4. keeps the epoch with the best validation loss in inference mode, checkpointing every epoch
+   atomically (a rerun resumes), and writes the fp16 weights, the config and a model card with
+   every head's validation accuracy, the training time and the data's hashes.
+
+The same seed gives the same weights.
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import io
+import json
+import time
+from dataclasses import asdict, dataclass, field, fields
+from pathlib import Path
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+import yaml
+from tqdm import tqdm
+
+from maniskill_tidy.knowledge import ROOM_TYPES, load_catalog
+from maniskill_tidy.models.decision import HEADS_GOAL, HEADS_TASK, DecisionConfig, TeamDecision
+from maniskill_tidy.tasks.dataset import write_atomic
+from maniskill_tidy.tasks.teams import SETTINGS
+from maniskill_tidy.training.decision_data import DemoConfig, build_demo_features
+
+FEATURES = ("sv", "sm", "fd", "fp")  # 256-d each, cached as fp16
+SCALARS = ("mis", "det", "failed")
+LABELS = HEADS_TASK + HEADS_GOAL
+OFFSET = {"dx": 4, "dy": 4}  # -4..4 -> class 0..8
+
+
+@dataclass(frozen=True)
+class TrainSettings:
+    epochs: int = 30
+    batch: int = 8  # episodes
+    lr: float = 1e-3
+    seed: int = 0
+    hard_fraction: float = 0.5
+    patience: int = 6  # epochs without a better val loss before stopping
+
+
+@dataclass(frozen=True)
+class AgentConfig:
+    """An agent config file (``agents/*.yaml``), checked on load."""
+
+    name: str
+    out: str  # where the trained model goes (a ``setting_S`` folder per setting)
+    perception: str = "agents/perception/knowledge"
+    dataset: str = "data/tidy120"
+    demos: str = "data/demos"
+    work: str = "data/decision"
+    workers: int = 2
+    train_demos: dict = field(default_factory=lambda: {"starts": 1, "tasks": 5})
+    val_demos: dict = field(default_factory=lambda: {"starts": 1, "tasks": 2})
+    model: dict = field(default_factory=dict)
+    train: dict = field(default_factory=dict)
+
+    @classmethod
+    def load(cls, path: Path) -> AgentConfig:
+        path = Path(path)
+        if not path.is_file():
+            raise FileNotFoundError(f"{path}: no such agent config (a YAML file under agents/)")
+        raw = yaml.safe_load(path.read_text()) or {}
+        if not isinstance(raw, dict):
+            raise ValueError(f"{path}: expected a mapping of settings, got {type(raw).__name__}")
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(raw) - known)
+        if unknown:
+            raise ValueError(f"{path}: unknown keys {unknown}; expected some of {sorted(known)}")
+        for key in ("name", "out"):
+            if key not in raw:
+                raise ValueError(f"{path}: missing {key!r}")
+        cfg = cls(**raw)
+        for section, klass in (("model", DecisionConfig), ("train", TrainSettings)):
+            names = {f.name for f in fields(klass)}
+            bad = sorted(set(getattr(cfg, section)) - names)
+            if bad:
+                raise ValueError(f"{path}: unknown {section} keys {bad}; expected {sorted(names)}")
+        for section in ("train_demos", "val_demos"):
+            bad = sorted(set(getattr(cfg, section)) - {"starts", "tasks", "houses"})
+            if bad:
+                raise ValueError(f"{path}: unknown {section} keys {bad}")
+        return cfg
+
+    def decision(self) -> DecisionConfig:
+        catalog = load_catalog()
+        return DecisionConfig(
+            categories=len(catalog.categories), objects=len(catalog.pickupable),
+            receptacles=len(catalog.receptacles), rooms=len(ROOM_TYPES), **self.model,
+        )  # fmt: skip
+
+    def settings(self) -> TrainSettings:
+        return TrainSettings(**self.train)
+
+
+# ------------------------------------------------------------------- features of every row
+@dataclass
+class Rows:
+    """Per-row tensors of one split, and the (episode, step, agent) -> row index."""
+
+    x: dict[str, torch.Tensor]
+    y: dict[str, torch.Tensor]
+    index: torch.Tensor  # (E, T, N) row or -1
+    hash: str
+
+    @property
+    def episodes(self) -> int:
+        return self.index.shape[0]
+
+    def batch(self, episodes: np.ndarray) -> tuple[list[dict], torch.Tensor, list[dict]]:
+        """Agent-wise inputs and labels (B, T, ·) of some episodes, and ``present`` (B, T, N)."""
+        idx = self.index[torch.as_tensor(episodes)]
+        t = int((idx >= 0).any(-1).any(0).nonzero().max()) + 1
+        idx = idx[:, :t]
+        present = idx >= 0
+        safe = idx.clamp(min=0)
+        xs, ys = [], []
+        for n in range(idx.shape[-1]):
+            rows = safe[:, :, n]
+            xs.append({k: v[rows].float() if v.is_floating_point() else v[rows]
+                       for k, v in self.x.items()})  # fmt: skip
+            ys.append({k: torch.where(present[:, :, n], v[rows], -1) for k, v in self.y.items()})
+        return xs, present, ys
+
+
+def _feature_hash(demos_hash: str, perception: Path) -> str:
+    digest = hashlib.sha256(demos_hash.encode())
+    digest.update(hashlib.sha256((perception / "model.pt").read_bytes()).digest())
+    return digest.hexdigest()[:16]
+
+
+@torch.no_grad()
+def embed_split(directory: Path, perception_dir: Path, cache: Path, progress: bool = True) -> Rows:
+    """Run the frozen perception over every row of a demos folder (cached by hash)."""
+    from maniskill_tidy.training.perception_trainer import load_agent
+
+    manifest = json.loads((directory / "manifest.json").read_text())
+    key = _feature_hash(manifest["demos_hash"], perception_dir)
+    path = cache / f"features_{key}.pt"
+    if path.is_file():
+        saved = torch.load(path, weights_only=False)
+        return Rows(saved["x"], saved["y"], saved["index"], key)
+    perception = load_agent(perception_dir)
+    k = perception.cfg.categories
+    shards = sorted(directory.glob("house_*.npz"))
+    parts: dict[str, list] = {}
+    keys: list[tuple[int, int, int]] = []
+    episodes = 0
+    for shard in tqdm(shards, desc=f"features {directory.parent.name} {directory.name}",
+                      unit="house", disable=not progress):  # fmt: skip
+        with np.load(shard) as z:
+            d = {name: z[name] for name in z.files}
+        n = len(d["t"])
+        g = perception.cfg.crop
+        for start in range(0, n, 512):
+            sl = slice(start, min(start + 512, n))
+            rows = np.arange(sl.start, sl.stop)
+            dets = np.flatnonzero(np.isin(d["det_row"], rows))
+            crop = np.unpackbits(d["crop"][sl], axis=1)[:, : g * g * (k + 2)]
+            f = perception.step_features(
+                torch.from_numpy(d["rgb"][sl]),
+                torch.from_numpy(d["seen"][sl].astype(np.float32)),
+                torch.from_numpy(crop.reshape(-1, g, g, k + 2)),
+                torch.from_numpy(d["det_row"][dets] - sl.start).long(),
+                torch.from_numpy(d["det_type"][dets]).long(),
+                torch.from_numpy(d["det_rest"][dets]).long(),
+                torch.from_numpy(d["det_numeric"][dets]),
+            )
+            for name in FEATURES:
+                parts.setdefault(name, []).append(f[name].half())
+            for name in ("mis", "det"):
+                parts.setdefault(name, []).append(f[name])
+        parts.setdefault("pose", []).append(torch.from_numpy(d["pose"]))
+        for name in ("failed", "capability", "held", *LABELS):
+            parts.setdefault(name, []).append(torch.from_numpy(d[name].astype(np.int64)))
+        for e, t, a in zip(d["episode"], d["t"], d["agent"], strict=True):
+            keys.append((episodes + int(e), int(t), int(a)))
+        episodes += len(json.loads(str(d["episodes"])))
+    cat = {name: torch.cat(v) for name, v in parts.items()}
+    x = {name: cat[name] for name in (*FEATURES, "mis", "det")}
+    x["failed"] = cat["failed"].float()
+    x["pose"] = cat["pose"].float()
+    x["va"] = cat["capability"].float()
+    x["held"] = cat["held"]
+    y = {name: cat[name] + OFFSET.get(name, 0) for name in LABELS}
+    agents = max(a for _, _, a in keys) + 1
+    steps = max(t for _, t, _ in keys) + 1
+    index = torch.full((episodes, steps, agents), -1, dtype=torch.long)
+    e, t, a = (torch.tensor(c) for c in zip(*keys, strict=True))
+    index[e, t, a] = torch.arange(len(keys))
+    cache.mkdir(parents=True, exist_ok=True)
+    buf = io.BytesIO()
+    torch.save({"x": x, "y": y, "index": index}, buf)
+    write_atomic(path, buf.getvalue())
+    return Rows(x, y, index, key)
+
+
+# ------------------------------------------------------------------- loss and metrics
+def bc_loss(out: list[dict], ys: list[dict]) -> torch.Tensor:
+    """Eq. 2 summed over the agents: Loss_subtask + Loss_subgoal, every weight 1."""
+    total = torch.zeros(())
+    for logits, y in zip(out, ys, strict=True):
+        for head in LABELS:
+            target = y[head]
+            if (target >= 0).any():
+                total = total + F.cross_entropy(
+                    logits[head].flatten(0, 1), target.flatten(), ignore_index=-1
+                )
+    return total
+
+
+@torch.no_grad()
+def evaluate(model: TeamDecision, rows: Rows, hard: bool, batch: int = 16) -> dict:
+    """Mean loss per episode batch and each head's accuracy over the labelled rows."""
+    model.eval()
+    correct = {h: 0 for h in LABELS}
+    count = {h: 0 for h in LABELS}
+    losses = []
+    for start in range(0, rows.episodes, batch):
+        xs, present, ys = rows.batch(np.arange(start, min(start + batch, rows.episodes)))
+        out, _ = model(xs, present, hard=hard)
+        losses.append(float(bc_loss(out, ys)))
+        for logits, y in zip(out, ys, strict=True):
+            for head in LABELS:
+                ok = y[head] >= 0
+                correct[head] += int((logits[head].argmax(-1)[ok] == y[head][ok]).sum())
+                count[head] += int(ok.sum())
+    return {
+        "loss": float(np.mean(losses)),
+        "accuracy": {h: correct[h] / count[h] if count[h] else None for h in LABELS},
+        "labelled": count,
+    }
+
+
+# ------------------------------------------------------------------- training
+def _seeded(seed: int) -> None:
+    torch.manual_seed(seed)
+    np.random.seed(seed)
+
+
+def fit(
+    model: TeamDecision, train: Rows, val: Rows, s: TrainSettings, checkpoint: Path,
+    progress: bool = True,
+) -> dict:  # fmt: skip
+    """Train (resumable); leaves the best-on-val weights (inference-mode loss) in ``model``."""
+    optimiser = torch.optim.Adam(model.parameters(), lr=s.lr)
+    rng = np.random.default_rng(s.seed)
+    state = {"epoch": 0, "best": float("inf"), "best_epoch": 0, "best_state": None,
+             "curve": [], "seconds": 0.0}  # fmt: skip
+    if checkpoint.is_file():
+        saved = torch.load(checkpoint, weights_only=False)
+        if saved["data"] == [train.hash, val.hash]:
+            model.load_state_dict(saved["model"])
+            optimiser.load_state_dict(saved["optimiser"])
+            rng.bit_generator.state = saved["rng"]
+            torch.set_rng_state(saved["torch_rng"])
+            state = saved["state"]
+    bar = tqdm(total=s.epochs, initial=state["epoch"], desc="behaviour cloning", unit="epoch",
+               disable=not progress)  # fmt: skip
+    while state["epoch"] < s.epochs and state["epoch"] - state["best_epoch"] < s.patience:
+        started = time.perf_counter()
+        model.train()
+        order = rng.permutation(train.episodes)
+        total = 0.0
+        for i in range(0, len(order), s.batch):
+            xs, present, ys = train.batch(order[i : i + s.batch])
+            loss = bc_loss(model(xs, present, hard=bool(rng.random() < s.hard_fraction))[0], ys)
+            optimiser.zero_grad()
+            loss.backward()
+            torch.nn.utils.clip_grad_norm_(model.parameters(), 5.0)
+            optimiser.step()
+            total += loss.item()
+        val_metrics = evaluate(model, val, hard=True)
+        state["epoch"] += 1
+        state["seconds"] += time.perf_counter() - started
+        state["curve"].append({"epoch": state["epoch"], "train": total / -(-len(order) // s.batch),
+                               "val": val_metrics["loss"]})  # fmt: skip
+        if val_metrics["loss"] < state["best"]:
+            state.update(best=val_metrics["loss"], best_epoch=state["epoch"],
+                         best_state=copy.deepcopy(model.state_dict()))  # fmt: skip
+        buf = io.BytesIO()
+        torch.save({"model": model.state_dict(), "optimiser": optimiser.state_dict(),
+                    "rng": rng.bit_generator.state, "torch_rng": torch.get_rng_state(),
+                    "state": state, "data": [train.hash, val.hash]}, buf)  # fmt: skip
+        write_atomic(checkpoint, buf.getvalue())
+        bar.update(1)
+        bar.set_postfix(train=f"{state['curve'][-1]['train']:.3f}", val=f"{state['best']:.3f}")
+    bar.close()
+    model.load_state_dict(state["best_state"])
+    return state
+
+
+def save_model(model: TeamDecision, folder: Path, extra: dict) -> None:
+    """fp16 weights and the config, atomically."""
+    folder.mkdir(parents=True, exist_ok=True)
+    half = {k: (v.half() if v.is_floating_point() else v) for k, v in model.state_dict().items()}
+    buf = io.BytesIO()
+    payload = {"config": asdict(model.cfg), "agents": len(model.agents), "state": half, **extra}
+    torch.save(payload, buf)
+    write_atomic(folder / "model.pt", buf.getvalue())
+    write_atomic(folder / "config.json", json.dumps(payload | {"state": None}, indent=1).encode())
+
+
+def load_model(folder: Path) -> tuple[TeamDecision, dict]:
+    """A trained team model in float32 and what was saved with it."""
+    path = Path(folder) / "model.pt"
+    if not path.is_file():
+        raise FileNotFoundError(f"{path} not found; train it with `maniskill-tidy train CONFIG`")
+    saved = torch.load(path, weights_only=False)
+    model = TeamDecision(DecisionConfig(**saved["config"]), saved["agents"])
+    model.load_state_dict({k: v.float() if v.is_floating_point() else v
+                           for k, v in saved["state"].items()})  # fmt: skip
+    return model.eval(), saved
+
+
+def demos_folder(cfg: AgentConfig, setting: str, split: str) -> Path:
+    return Path(cfg.demos) / f"setting_{setting}" / split
+
+
+def train_decision(config: Path, setting: str, progress: bool = True) -> dict:
+    """Demos (if missing), features, behaviour cloning and the model card; returns the card."""
+    from maniskill_tidy.eval.runner import code_version
+
+    cfg = AgentConfig.load(config)
+    if setting not in SETTINGS:
+        raise ValueError(f"unknown setting {setting!r}; expected one of {sorted(SETTINGS)}")
+    settings = cfg.settings()
+    manifests = {}
+    for split, demo in (("train", cfg.train_demos), ("val", cfg.val_demos)):
+        manifests[split] = build_demo_features(
+            Path(cfg.demos), cfg.dataset, DemoConfig(setting=setting, split=split, **demo),
+            workers=cfg.workers, progress=progress,
+        )  # fmt: skip
+    work = Path(cfg.work) / f"setting_{setting}"
+    perception = Path(cfg.perception)
+    train = embed_split(demos_folder(cfg, setting, "train"), perception, work, progress)
+    val = embed_split(demos_folder(cfg, setting, "val"), perception, work, progress)
+    _seeded(settings.seed)
+    model = TeamDecision(cfg.decision(), train.index.shape[-1])
+    state = fit(model, train, val, settings, work / f"{cfg.name}.ckpt", progress)
+    card = {
+        "name": cfg.name,
+        "setting": setting,
+        "config": str(config),
+        "decision": asdict(model.cfg),
+        "train_settings": asdict(settings),
+        "parameters_per_agent": sum(p.numel() for p in model.agents[0].parameters()),
+        "agents": len(model.agents),
+        "perception": str(perception),
+        "demos": {
+            split: {
+                k: m[k]
+                for k in (
+                    "demos_hash",
+                    "trajectories",
+                    "rows",
+                    "expert_success",
+                    "seconds",
+                    "starts",
+                    "tasks",
+                )
+            }
+            for split, m in manifests.items()
+        },  # fmt: skip
+        "features": {"train": train.hash, "val": val.hash},
+        "epochs_run": state["epoch"],
+        "best_epoch": state["best_epoch"],
+        "train_seconds": round(state["seconds"], 1),
+        "curve": state["curve"],
+        "val_inference_mode": evaluate(model, val, hard=True),
+        "val_training_mode": evaluate(model, val, hard=False),
+        "code_version": code_version(),
+    }
+    folder = Path(cfg.out) / f"setting_{setting}"
+    save_model(model, folder, {"name": cfg.name, "perception": str(perception)})
+    write_atomic(folder / "card.json", json.dumps(card, indent=1, sort_keys=True).encode())
+    write_atomic(folder / "MODEL_CARD.md", model_card(card).encode())
+    return card
+
+
+def model_card(card: dict) -> str:
+    hard, soft = card["val_inference_mode"], card["val_training_mode"]
+    lines = [
+        f"# {card['name']}, Setting {card['setting']}",
+        "",
+        "Hierarchical decision with HanGrCom (paper Sections 5.3-5.5), trained by behaviour "
+        "cloning on the privileged expert's sub-tasks and sub-goals (`maniskill-tidy train "
+        f"{card['config']} --setting {card['setting']}`).",
+        "",
+        f"- agents: {card['agents']}, one model each, {card['parameters_per_agent']:,} "
+        "parameters per agent, stored fp16",
+        f"- perception (frozen): `{card['perception']}`",
+        f"- epochs run: {card['epochs_run']}, best on val: {card['best_epoch']}; training time "
+        f"{card['train_seconds']:.0f} s (2 CPU cores)",
+    ]
+    for split, m in card["demos"].items():
+        lines.append(
+            f"- {split} demonstrations: {m['trajectories']} trajectories ({m['tasks']} meta-tasks"
+            f" per house x {m['starts']} start), {m['rows']} agent-steps, expert success "
+            f"{m['expert_success']:.3f}, rendered in {m['seconds']:.0f} s, hash "
+            f"`{m['demos_hash'][:12]}`"
+        )
+    lines += [
+        "",
+        "Validation accuracy of every head (rows with a label), inference-mode HanGrCom "
+        "(thresholded handshake) and training mode (soft):",
+        "",
+        "| head | inference mode | training mode | labelled rows |",
+        "|---|---|---|---|",
+    ]
+    for head in LABELS:
+        a, b = (_fmt(m["accuracy"][head]) for m in (hard, soft))
+        lines.append(f"| {head} | {a} | {b} | {hard['labelled'][head]} |")
+    lines += [
+        "",
+        f"Validation loss: {hard['loss']:.3f} (inference), {soft['loss']:.3f} (soft).",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def _fmt(value: float | None) -> str:
+    return "-" if value is None else f"{value:.3f}"

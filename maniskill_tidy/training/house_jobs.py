@@ -1,0 +1,72 @@
+"""Rendering work split by house: one shard per house, written atomically, a rerun skips the
+finished ones; one process pool (SAPIEN allows one renderer per process, so each worker builds
+its env once); one hash over the shards for the manifest."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import time
+from collections.abc import Callable
+from multiprocessing import get_context
+from pathlib import Path
+
+from tqdm import tqdm
+
+
+def run_house_jobs(
+    jobs: list,
+    init: Callable,
+    initargs: tuple,
+    work: Callable,
+    workers: int,
+    bar: tqdm,
+) -> float:
+    """Run ``work(job)`` for every job (in ``workers`` processes, each set up by ``init``);
+    returns the wall time in seconds."""
+    started = time.perf_counter()
+    if jobs and workers <= 1:
+        close = init(*initargs)
+        for job in jobs:
+            work(job)
+            bar.update(1)
+        if callable(close):
+            close()
+    elif jobs:
+        from concurrent.futures import ProcessPoolExecutor, as_completed
+
+        with ProcessPoolExecutor(
+            workers, mp_context=get_context("spawn"), initializer=init, initargs=initargs
+        ) as pool:
+            for fut in as_completed([pool.submit(work, j) for j in jobs]):
+                fut.result()
+                bar.update(1)
+    bar.close()
+    return time.perf_counter() - started if jobs else 0.0
+
+
+def total_seconds(manifest: Path, seconds: float) -> float:
+    """Wall time accumulated over the runs that rendered houses into one folder."""
+    if manifest.is_file():
+        seconds += json.loads(manifest.read_text()).get("seconds", 0.0)
+    return round(seconds, 1)
+
+
+def shards_digest(directory: Path, pattern: str) -> str:
+    digest = hashlib.sha256()
+    for shard in sorted(Path(directory).glob(pattern)):
+        digest.update(shard.name.encode() + hashlib.sha256(shard.read_bytes()).digest())
+    return digest.hexdigest()
+
+
+def check_same_config(manifest: Path, want: dict) -> None:
+    """Refuse to mix shards made with two configurations in one folder."""
+    if not manifest.is_file():
+        return
+    old = json.loads(manifest.read_text())
+    differ = [k for k, v in want.items() if old.get(k) != v]
+    if differ:
+        raise ValueError(
+            f"{manifest.parent} holds shards built with other settings ({', '.join(differ)}); "
+            "remove that folder or pass another output folder"
+        )
