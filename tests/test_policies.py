@@ -8,9 +8,9 @@ import pytest
 
 from maniskill_tidy.envs.actions import Action, AgentState
 from maniskill_tidy.envs.episodes import default_dataset
+from maniskill_tidy.perception.frame_inputs import camera_pitch
 from maniskill_tidy.perception.semantic_map import SemanticMap
 from maniskill_tidy.policies.base import SubTask
-from maniskill_tidy.policies.heuristic import camera_pitch
 from maniskill_tidy.policies.messages import (
     FETCH,
     STATE_DIMS,

@@ -10,7 +10,8 @@ the env instead.
 Observers watch the episode with full access (they are the benchmark's instruments, not part
 of the team): a recorder, the demonstration writer. Each may define ``start(env, team,
 channel)``, ``observed(t, obs, info)`` (the observation the team decides on at step ``t``),
-``decided(t, actions, labels)`` (before the env steps), ``log_step(t, obs, actions, info,
+``decided(t, actions, labels)`` (before the env steps), ``traced(t, traces)`` (what the agents
+report beyond their labels, e.g. HanGrCom's T and groups), ``log_step(t, obs, actions, info,
 channel, labels)`` (after) and ``finish(record)``.
 """
 
@@ -85,6 +86,11 @@ class Execution:
         self.t += 1
         return {name: self.agents[name].act(self.channel.inbox(name)) for name in active}
 
+    def traces(self) -> dict[str, dict]:
+        if isinstance(self.team, PrivilegedTeam):
+            return {}
+        return {name: tr for name, agent in self.agents.items() if (tr := agent.trace())}
+
     def labels(self) -> dict[str, Label]:
         if isinstance(self.team, PrivilegedTeam):
             return self.team.labels()
@@ -116,6 +122,9 @@ def play_episode(env, team: AnyTeam, index: int, seed: int, observers=()) -> Epi
         actions = execution.step(obs, info)
         labels = {n: label for n, label in execution.labels().items() if n in actions}
         _call(observers, "decided", t, actions, labels)
+        _call(
+            observers, "traced", t, {n: tr for n, tr in execution.traces().items() if n in actions}
+        )
         obs, _, terminated, truncated, info = env.step(actions)
         t += 1
         failed += sum(1 for reason in info["failed"].values() if reason)

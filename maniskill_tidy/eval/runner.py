@@ -29,7 +29,7 @@ from tqdm import tqdm
 
 from maniskill_tidy.eval.episode import play_episode
 from maniskill_tidy.eval.metrics import EpisodeRecord, summarize
-from maniskill_tidy.policies import POLICIES, make_team
+from maniskill_tidy.policies import make_team, team_class
 from maniskill_tidy.policies.channel import CENTRAL
 from maniskill_tidy.tasks.dataset import write_atomic
 
@@ -50,7 +50,7 @@ class RunConfig:
     def env_kwargs(self, images: bool | str) -> dict:
         """``images``: True for every camera image, False for the team's own observation
         mode (``Team.observations``, "none" for teams that ignore images), or an obs_mode."""
-        team_cls = POLICIES[self.policy]
+        team_cls = team_class(self.policy)
         if isinstance(images, str):
             mode = images
         elif images:
@@ -68,7 +68,7 @@ class RunConfig:
 
 
 def run_dir(out: Path, cfg: RunConfig) -> Path:
-    return Path(out) / "eval" / "results" / f"setting_{cfg.setting}" / cfg.policy
+    return Path(out) / "eval" / "results" / f"setting_{cfg.setting}" / team_class(cfg.policy).name
 
 
 def code_version() -> str:
@@ -141,7 +141,8 @@ def _work(index: int) -> EpisodeRecord:
 def _recorder(cfg: RunConfig, out: Path):
     from maniskill_tidy.recording.episode_log import EpisodeRecorder
 
-    return EpisodeRecorder(out / "recordings" / f"setting_{cfg.setting}" / cfg.policy)
+    name = team_class(cfg.policy).name
+    return EpisodeRecorder(out / "recordings" / f"setting_{cfg.setting}" / name)
 
 
 def _record_failures(cfg: RunConfig, records: list[EpisodeRecord], indices: dict, out: Path):
@@ -217,14 +218,12 @@ def evaluate(
     images: bool = False,
 ) -> dict:
     """Run (or resume) an evaluation and write its summary; returns the summary."""
-    if cfg.policy not in POLICIES:
-        raise ValueError(f"unknown policy {cfg.policy!r}; choose one of {sorted(POLICIES)}")
+    team_cls = team_class(cfg.policy)  # a one-line error for an unknown policy
     if record not in RECORD_MODES:
         raise ValueError(f"--record must be one of {RECORD_MODES}, got {record!r}")
     from maniskill_tidy.envs.episodes import EpisodeSet
     from maniskill_tidy.tasks.teams import team as parse_team
 
-    team_cls = POLICIES[cfg.policy]
     setting = getattr(team_cls, "team_override", None) or cfg.setting
     members = parse_team(setting)
     # As the env does: the smallest setting that fits the team gives the starts (for SA, one
@@ -316,7 +315,7 @@ def evaluate(
         _record_failures(cfg, records, ids, out)
 
     summary = {
-        "policy": cfg.policy,
+        "policy": team_cls.name,
         "protocol": cfg.episodes
         if isinstance(cfg.episodes, str)
         else f"{cfg.episodes} evenly spread episodes",

@@ -77,7 +77,7 @@ def hard_links(
     reach = links | links.transpose(-1, -2) | (eye & present.unsqueeze(-1))
     for _ in range(n):  # transitive closure: groups are the connected components
         reach = reach | ((reach.float() @ reach.float()) > 0)
-    members = reach.float()
+    members = reach.to(t.dtype)
     score = (members @ t) / members.sum(-1, keepdim=True).clamp(min=1)
     outside = present.unsqueeze(-2) & ~reach
     score = score.masked_fill(~outside, float("-inf"))

@@ -1,5 +1,5 @@
-"""Teams: the privileged expert, the Random baseline and heuristic teams that see through
-their cameras, with the communication patterns of the paper's baselines."""
+"""Teams: the privileged expert, the Random baseline, heuristic teams that see through their
+cameras with the communication patterns of the paper's baselines, and the learned team."""
 
 from __future__ import annotations
 
@@ -12,6 +12,7 @@ from maniskill_tidy.policies.heuristic import (
     NoCommTeam,
     SingleAgent,
 )
+from maniskill_tidy.policies.learned import LearnedTeam, learned_team_class
 from maniskill_tidy.policies.random_team import RandomTeam
 
 POLICIES: dict[str, type[AnyTeam]] = {
@@ -24,11 +25,22 @@ POLICIES: dict[str, type[AnyTeam]] = {
         DetectionCommTeam,
         BroadcastTeam,
         CentralTeam,
+        LearnedTeam,
     )
 }
 
 
-def make_team(name: str) -> AnyTeam:
-    if name not in POLICIES:
-        raise ValueError(f"unknown policy {name!r}; choose one of {sorted(POLICIES)}")
-    return POLICIES[name]()
+def team_class(policy: str) -> type[AnyTeam]:
+    """A registered name, or the path of an agent config (``agents/*.yaml``)."""
+    if policy in POLICIES:
+        return POLICIES[policy]
+    if str(policy).endswith((".yaml", ".yml")):
+        return learned_team_class(policy)
+    raise ValueError(
+        f"unknown policy {policy!r}; choose one of {sorted(POLICIES)} or an agent config "
+        "(agents/*.yaml)"
+    )
+
+
+def make_team(policy: str) -> AnyTeam:
+    return team_class(policy)()

@@ -136,6 +136,10 @@ class Agent(ABC):
         """The sub-task and sub-goal behind the last action (None if the agent has none)."""
         return None
 
+    def trace(self) -> dict:
+        """What else was behind the last action, for recordings (HanGrCom's T and groups)."""
+        return {}
+
 
 class CentralNode(ABC):
     """A team's central planner: it sees only the messages sent to it."""
