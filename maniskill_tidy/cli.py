@@ -103,8 +103,22 @@ def _replay(args: argparse.Namespace) -> int:
 
 
 def _demos(args: argparse.Namespace) -> int:
+    if args.features:
+        from maniskill_tidy.training.decision_data import DemoConfig, build_demo_features
+
+        out = Path(args.out or "data/demos")
+        cfg = DemoConfig(args.setting, args.split, args.starts, args.tasks_per_house,
+                         args.houses, args.seed)  # fmt: skip
+        m = build_demo_features(out, args.dataset, cfg, workers=args.workers)
+        folder = out / f"setting_{args.setting}" / args.split
+        print(
+            f"{m['trajectories']} trajectories ({m['rows']} agent-steps, "
+            f"{m['bytes'] / 1e6:.0f} MB, expert success {m['expert_success']:.3f}) in {folder}"
+        )
+        return 0
     from maniskill_tidy.training.demonstrations import write_demonstrations
 
+    args.out = args.out or "data/trajectories"
     m = write_demonstrations(
         Path(args.out), args.dataset, args.split, args.setting, tasks=args.tasks, seed=args.seed
     )
@@ -116,6 +130,17 @@ def _demos(args: argparse.Namespace) -> int:
 
 
 def _train(args: argparse.Namespace) -> int:
+    if args.what != "perception":
+        from maniskill_tidy.training.decision_trainer import train_decision
+
+        card = train_decision(Path(args.what), args.setting)
+        acc = card["val_inference_mode"]["accuracy"]
+        print(
+            f"{card['name']} Setting {args.setting}: trained in {card['train_seconds']:.0f} s "
+            f"(best epoch {card['best_epoch']}); val accuracy "
+            + ", ".join(f"{h} {a:.3f}" for h, a in acc.items() if a is not None)
+        )
+        return 0
     from maniskill_tidy.tasks.dataset import read_manifest
     from maniskill_tidy.training.perception_trainer import TrainConfig, train_perception
 
@@ -415,11 +440,22 @@ def build_parser() -> argparse.ArgumentParser:
     dm.add_argument("--split", default="train", choices=("train", "val", "test"))
     dm.add_argument("--tasks", type=int, help="only the first N meta-tasks (5 starts each)")
     dm.add_argument("--seed", type=int, default=0)
-    dm.add_argument("--out", default="data/demos")
+    dm.add_argument("--out", help="default data/trajectories, or data/demos with --features")
+    dm.add_argument(
+        "--features", action="store_true",
+        help="render every camera and store each agent's model inputs per step (for training)",
+    )  # fmt: skip
+    dm.add_argument("--starts", type=int, default=1, help="with --features: starts per meta-task")
+    dm.add_argument("--tasks-per-house", type=int, help="with --features: meta-tasks per house")
+    dm.add_argument("--houses", type=int, help="with --features: only the first N houses")
+    dm.add_argument("--workers", type=int, default=2, help="with --features: rendering processes")
     dm.set_defaults(func=_demos)
 
     tr = sub.add_parser("train", help="train the paper's learned modules (CPU)")
-    tr.add_argument("what", choices=("perception",), help="which modules")
+    tr.add_argument(
+        "what", help="`perception`, or an agent config (agents/hangrcom.yaml) to train by BC"
+    )
+    tr.add_argument("--setting", default="I", help="with an agent config: I or II")
     tr.add_argument("--dataset", default="data/tidy120", help="dataset directory")
     tr.add_argument("--out", default="agents/perception", help="agent folder to write")
     tr.add_argument(

@@ -14,3 +14,26 @@ def small_dataset(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("ds") / "small"
     generate_dataset(out, 12, seed=3, progress=False)
     return out
+
+
+@pytest.fixture(scope="session")
+def learned_config(tmp_path_factory) -> Path:
+    """An agent config whose decision models (Settings I and II) are freshly initialised from
+    a seed: it tests the learned team's mechanics (perception, HanGrCom's messages, executor),
+    not what training taught it."""
+    import torch
+
+    from maniskill_tidy.training.decision_trainer import AgentConfig, save_model
+
+    root = tmp_path_factory.mktemp("learned")
+    config = root / "hangrcom.yaml"
+    config.write_text(f"name: hangrcom\nout: {root / 'hangrcom'}\n")
+    cfg = AgentConfig.load(config)
+    for setting, agents in (("I", 3), ("II", 4)):
+        from maniskill_tidy.models.decision import TeamDecision
+
+        torch.manual_seed(0)
+        save_model(
+            TeamDecision(cfg.decision(), agents), root / "hangrcom" / f"setting_{setting}", {}
+        )
+    return config

@@ -7,6 +7,7 @@ import types
 
 import numpy as np
 import pytest
+import torch
 
 from maniskill_tidy.envs.actions import MIN_PIXELS, Action
 from maniskill_tidy.eval import runner
@@ -140,6 +141,8 @@ def _mutables(root, skip: set[int]) -> dict[int, object]:
             continue
         if isinstance(o, (types.FunctionType, types.MethodType, types.BuiltinFunctionType)):
             continue
+        if isinstance(o, torch.nn.Module):
+            continue  # weights: agents may share them (their recurrent states are their own)
         if isinstance(o, dict):
             found[id(o)] = o
             stack += list(o.keys()) + list(o.values())
@@ -157,10 +160,12 @@ def _mutables(root, skip: set[int]) -> dict[int, object]:
 
 
 @pytest.mark.parametrize("policy", sorted(p for p, cls in POLICIES.items() if not cls.privileged))
-def test_agents_of_a_team_share_code_and_public_data_not_state(policy, small_house_public):
+def test_agents_of_a_team_share_code_and_public_data_not_state(
+    policy, small_house_public, learned_config
+):
     public = small_house_public
     channel = Channel(public.agents, central=True)
-    team = make_team(policy)
+    team = make_team(str(learned_config) if policy == "hangrcom" else policy)
     agents = [team.make_agent(n, public, Outbox(channel, n)) for n in public.agents]
     shared_ok: set[int] = set()
     for allowed in (public, channel, load_placement(), load_catalog()):
@@ -217,11 +222,11 @@ EPISODE = 10
 
 
 @pytest.fixture(scope="module")
-def played():
+def played(learned_config):
     out = {}
     envs = {}
     for policy in sorted(POLICIES):
-        team = make_team(policy)
+        team = make_team(str(learned_config) if policy == "hangrcom" else policy)
         cfg = RunConfig(policy, "I", "test", None, "standard")
         key = (tuple(map(tuple, team.team_override or [])), cfg.env_kwargs(False)["obs_mode"])
         if key not in envs:
@@ -281,6 +286,24 @@ def test_detection_sends_only_while_a_misplaced_object_is_in_view(played):
     assert senders > 0 and record.comm > 0, "pick an episode where a misplaced object is seen"
     quiet = sum(1 for _, messages, _ in steps if not messages)
     assert quiet > 0, "a conditional pattern that always sends is broadcast"
+
+
+def test_hangrcom_sends_only_the_handshakes_vectors_to_teammates_present(played):
+    """Queries (32) to the teammates present last step, rows of T (3), and values (64) and
+    inter-group vectors (64) to agents acting this step; AvgCom counts all of it."""
+    record, steps = played["hangrcom"]
+    dims = {"query": 32, "attention": SETTING_I, "value": 64, "inter": 64}
+    before = [f"agent_{i}" for i in range(SETTING_I)]
+    for active, messages, _ in steps:
+        assert {m.kind for m in messages} <= set(dims)
+        for m in messages:
+            assert m.dims == dims[m.kind] and m.sender in active
+            assert m.receiver in (before if m.kind == "query" else active), m
+        queries = sum(m.dims for m in messages if m.kind == "query")
+        assert queries == 32 * sum(len(set(before) - {a}) for a in active)
+        before = active
+    assert record.comm == sum(sum(m.dims for m in msgs) for _, msgs, _ in steps)
+    assert record.comm > 0
 
 
 def test_central_team_talks_only_with_its_central_node(played):

@@ -82,3 +82,10 @@ class HandshakeExchange:
         if self.hs is None:
             return [[self.name]]
         return [[self.agents[i] for i in g] for g in self.hs.groups]
+
+    def links(self) -> list[tuple[str, str]]:
+        """This step's (sender, receiver) pairs of values."""
+        if self.hs is None:
+            return []
+        pairs = zip(*np.nonzero(self.hs.links), strict=True)
+        return [(self.agents[j], self.agents[i]) for i, j in pairs]

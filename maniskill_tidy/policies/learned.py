@@ -143,7 +143,8 @@ class LearnedAgent(Agent):
         self.lstm = (self.lstm[0], *states)
         d = decode(logits)
         self._label = (d.subtask, d.subgoal)
-        self._trace = {"T": self.exchange.T, "groups": self.exchange.groups()}
+        ex = self.exchange
+        self._trace = {"T": ex.T, "groups": ex.groups(), "links": ex.links()}
         action = self._act(d)
         self._last_op = action.action if isinstance(action, Targeted) else action
         return action

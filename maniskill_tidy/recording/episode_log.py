@@ -10,7 +10,10 @@ Entity paths:
   ``world/cameras``;
 - ``agents/<name>/{action,failed,held,subtask}``: text logs per step;
 - ``comm/messages`` (text), ``comm/matrix`` (values sent this step, sender x receiver),
-  ``comm/groups`` (a graph: agents and who talked to whom this step), ``comm/values`` (scalar);
+  ``comm/groups`` (a graph: agents and who talked to whom this step; for a team whose agents
+  report handshake groups (HanGrCom), those groups, with the value links as edges),
+  ``comm/values`` (scalar); ``comm/T`` (HanGrCom's communication matrix, receiver x sender)
+  and ``agents/<name>/attention`` (its row of T);
 - ``metrics/{reasonable,picked,comm_per_agent_step}``: scalars over time;
 - with images (depth and segmentation) in the observations, each agent's semantic map
   (``perception/semantic_map.py``): ``maps/<name>`` and the merged ``maps/team`` as class
@@ -175,6 +178,21 @@ class EpisodeRecorder:
         rec.log("metrics/picked", rr.Scalars(float(len(info.get("picked", [])))))
         rec.log("metrics/comm_per_agent_step", rr.Scalars(channel.total / (max(t, 1) * n)))
 
+    def traced(self, t: int, traces: dict) -> None:
+        """HanGrCom's T and groups, decided at step ``t`` (shown with that step's messages)."""
+        self._handshake = None
+        reported = [tr for tr in traces.values() if "T" in tr]
+        if not reported:
+            return
+        self.rec.set_time("step", sequence=t + 1)
+        names = [a.name for a in self.env.agents]
+        for name, tr in traces.items():
+            if "T" in tr:
+                self.rec.log(f"agents/{name}/attention", rr.BarChart(tr["T"][names.index(name)]))
+        first = reported[0]
+        self.rec.log("comm/T", rr.Tensor(first["T"], dim_names=["receiver i", "sender j"]))
+        self._handshake = (first["groups"], first.get("links", []))
+
     def finish(self, record) -> Path:
         self.rec.set_time("step", sequence=record.length)
         if self.maps is not None:
@@ -283,6 +301,14 @@ class EpisodeRecorder:
         rec.log("comm/matrix", rr.Tensor(channel.matrix(), dim_names=["sender", "receiver"]))
         rec.log("comm/values", rr.Scalars(float(channel.step_total)))
         ids = channel.endpoints
+        handshake = getattr(self, "_handshake", None)
+        if handshake is not None:  # the groups the agents formed, not all traffic
+            groups, links = handshake
+            group_of = {a: f"{a} (group {k})" for k, g in enumerate(groups) for a in g}
+            labels = [group_of.get(a, a) for a in ids]
+            rec.log("comm/groups", rr.GraphNodes(node_ids=ids, labels=labels))
+            rec.log("comm/groups", rr.GraphEdges(edges=sorted(links), graph_type="directed"))
+            return
         rec.log("comm/groups", rr.GraphNodes(node_ids=ids, labels=ids))
         edges = sorted({(m.sender, m.receiver) for m in channel.step_messages})
         rec.log("comm/groups", rr.GraphEdges(edges=edges or [], graph_type="directed"))
