@@ -46,13 +46,18 @@ leaderboard: setup
 	    $(EVAL) --policy $$p --setting $$s || exit 1; done; done
 	$(PY) -m maniskill_tidy.cli leaderboard
 
-# The paper's learned perception modules (issue 12), on CPU: render the views of the 120-house
+# The paper's learned model, on CPU. Perception (issue 12): render the views of the 120-house
 # dataset's houses (resumable per house), train every stage with and without the knowledge
-# graph (resumable per epoch), then report on the test split. Writes agents/perception/.
+# graph (resumable per epoch), report on the test split; writes agents/perception/. Then the
+# hierarchical decision with HanGrCom by behaviour cloning, per setting: render the expert's
+# demonstrations with every agent's inputs (data/demos, resumable per house), embed them with
+# the frozen perception, train (resumable per epoch); writes agents/hangrcom/setting_*/.
+TRAIN_SETTINGS ?= I II
 train: setup
 	test -f $(DATA120)/manifest.json || $(PY) -m maniskill_tidy.cli generate --houses 120 --seed 0 --workers 2 --out $(DATA120)
 	$(PY) -m maniskill_tidy.cli train perception --dataset $(DATA120) --out agents/perception
 	$(PY) -m maniskill_tidy.cli perception-report --agents agents/perception --dataset $(DATA120)
+	for s in $(TRAIN_SETTINGS); do $(PY) -m maniskill_tidy.cli train agents/hangrcom.yaml --setting $$s || exit 1; done
 
 lint: setup
 	$(PY) -m ruff check maniskill_tidy tests

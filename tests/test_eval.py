@@ -220,6 +220,9 @@ def test_leaderboard_assembles_ces_intervals_and_notes(tmp_path):
             communication="central",
             versions=["v1", "v2"],
         ),
+        "hangrcom": _summary(
+            "hangrcom", [True, False, True, False] * 5, 240, communication="hangrcom"
+        ),
     }
     for policy, s in runs.items():
         path = tmp_path / "results" / "setting_I" / policy / "summary.json"
@@ -241,6 +244,11 @@ def test_leaderboard_assembles_ces_intervals_and_notes(tmp_path):
     assert "the paper gives CentralComm. the broadcast figure" in md
     assert "code versions ['v1', 'v2']" in md
     assert "SA *(paper)*" in md  # the paper's rows beside ours
+    lines = md.splitlines()
+    ours = next(i for i, line in enumerate(lines) if line.startswith("| **hangrcom**"))
+    assert lines[ours + 1].startswith("| Ours *(paper)* |")  # the learned row, then the paper's
+    table_end = next(i for i in range(ours, len(lines)) if not lines[i].startswith("|"))
+    assert not any("Ours *(paper)*" in line for line in lines[ours + 2 : table_end])
     assert (tmp_path / "leaderboard.png").read_bytes()[:4] == b"\x89PNG"
 
 

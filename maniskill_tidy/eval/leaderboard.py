@@ -25,8 +25,11 @@ ORDER = (
     "heuristic-detection",
     "heuristic-broadcast",
     "heuristic-central",
+    "hangrcom",
     "expert",
 )
+# Our learned rows and the paper's row of the same method, shown one under the other.
+PAPER_ROW = {"hangrcom": "Ours"}
 
 
 def paper_reference() -> dict:
@@ -110,12 +113,21 @@ def table(setting: str, runs: dict[str, dict], reference: dict) -> str:
         if s.get("communication") in ACM_NOTES:
             notes.append(f"† {policy}: {ACM_NOTES[s['communication']]}")
         lines.append(f"| **{policy}**{tag} | " + " | ".join(_our_row(s, sa)) + " |")
-    for name, values in reference["rows"].get(setting, {}).items():
-        cells = [_fmt(v, COLUMNS[i // 3]) for i, v in enumerate(values)]
-        lines.append(f"| {name} *(paper)* | " + " | ".join(cells) + " |")
+        if policy in PAPER_ROW:
+            lines.append(_paper_row(PAPER_ROW[policy], reference, setting))
+    paired = {PAPER_ROW[p] for p in runs if p in PAPER_ROW}
+    for name in reference["rows"].get(setting, {}):
+        if name not in paired:
+            lines.append(_paper_row(name, reference, setting))
     if notes:
         lines += [""] + [f"{n}  " for n in notes]
     return "\n".join(lines)
+
+
+def _paper_row(name: str, reference: dict, setting: str) -> str:
+    values = reference["rows"][setting][name]
+    cells = [_fmt(v, COLUMNS[i // 3]) for i, v in enumerate(values)]
+    return f"| {name} *(paper)* | " + " | ".join(cells) + " |"
 
 
 def details(runs: dict[str, dict]) -> str:

@@ -1,0 +1,154 @@
+"""Demonstrations with features, the behaviour-cloning trainer and agent configs."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from maniskill_tidy.cli import main
+from maniskill_tidy.envs.actions import Action
+from maniskill_tidy.knowledge import load_catalog
+from maniskill_tidy.models.decision import DecisionConfig, TeamDecision
+from maniskill_tidy.policies.base import OPERATIONS
+from maniskill_tidy.training.decision_data import (
+    DemoConfig,
+    build_demo_features,
+    load_demo_features,
+)
+from maniskill_tidy.training.decision_trainer import (
+    AgentConfig,
+    TrainSettings,
+    embed_split,
+    evaluate,
+    fit,
+    load_model,
+    save_model,
+)
+
+DEMOS = DemoConfig(setting="I", split="train", starts=1, tasks=1, houses=1)
+PERCEPTION = Path(__file__).resolve().parents[1] / "agents" / "perception" / "knowledge"
+
+
+@pytest.fixture(scope="module")
+def demos(small_dataset, tmp_path_factory) -> Path:
+    root = tmp_path_factory.mktemp("demos")
+    for split in ("train", "val"):
+        build_demo_features(root, str(small_dataset), replace(DEMOS, split=split), progress=False)
+    return root
+
+
+def test_demos_hold_every_agents_inputs_and_the_experts_labels(demos):
+    d = load_demo_features(demos / "setting_I" / "train")
+    manifest = json.loads((demos / "setting_I" / "train" / "manifest.json").read_text())
+    assert manifest["trajectories"] == len(d["episodes"]) == 1 and manifest["rows"] == len(d["t"])
+    k = len(load_catalog().categories)
+    assert d["rgb"].shape[1:] == (64, 64, 3) and d["seen"].shape[1:] == (k,)
+    assert np.unpackbits(d["crop"], axis=1).shape[1] >= 20 * 20 * (k + 2)
+    for agent in range(3):  # one sequence per agent: steps 0, 1, ... up to its Stop
+        rows = np.flatnonzero(d["agent"] == agent)
+        assert rows.tolist() == sorted(rows) and d["t"][rows].tolist() == list(range(len(rows)))
+        assert (d["capability"][rows] == [(1, 0, 0), (1, 0, 1), (1, 1, 1)][agent]).all()
+    stops = d["action"] == int(Action.Stop)
+    assert (d["stop"][stops] == 1).all(), "the expert's Stop is labelled stop"
+    assert d["episodes"][0]["success"], "the expert tidied this task"
+    assert ((-4 <= d["dx"]) & (d["dx"] <= 4) & (-4 <= d["dy"]) & (d["dy"] <= 4)).all()
+    assert set(d["ope"].tolist()) <= set(range(len(OPERATIONS)))
+    place = d["kind"] == 1
+    assert place.any() and (d["object"][place] >= 0).all() and (d["receptacle"][place] >= 0).all()
+    assert (d["ope"] == OPERATIONS.index("PickUp")).any(), "the manipulator picks something up"
+    assert (d["det_row"] < len(d["t"])).all() and len(d["det_row"]) > 0
+    held = d["held"] >= 0
+    assert held.any() and (d["agent"][held] == 2).all(), "only the manipulator holds things"
+
+
+def test_demos_resume_and_refuse_another_configuration(demos, small_dataset):
+    folder = demos / "setting_I" / "train"
+    before = {p.name: p.stat().st_mtime_ns for p in folder.iterdir()}
+    m = build_demo_features(demos, str(small_dataset), DEMOS, progress=False)
+    shards = [p for p in before if p.startswith("house_")]
+    assert all((folder / p).stat().st_mtime_ns == before[p] for p in shards)  # not rendered again
+    assert m["demos_hash"] == json.loads((folder / "manifest.json").read_text())["demos_hash"]
+    with pytest.raises(ValueError, match="starts"):
+        build_demo_features(demos, str(small_dataset), replace(DEMOS, starts=2), progress=False)
+
+
+@pytest.fixture(scope="module")
+def rows(demos, tmp_path_factory):
+    cache = tmp_path_factory.mktemp("features")
+    train = embed_split(demos / "setting_I" / "train", PERCEPTION, cache, progress=False)
+    val = embed_split(demos / "setting_I" / "val", PERCEPTION, cache, progress=False)
+    return train, val
+
+
+def _cfg() -> DecisionConfig:
+    catalog = load_catalog()
+    return DecisionConfig(objects=len(catalog.pickupable), receptacles=len(catalog.receptacles))
+
+
+def test_features_line_up_with_the_rows(rows):
+    train, _ = rows
+    assert train.index.shape[0] == 1 and train.index.shape[2] == 3
+    n = int((train.index >= 0).sum())
+    assert n == len(train.x["sv"]) and sorted(train.index[train.index >= 0].tolist()) == list(
+        range(n)
+    )
+    assert train.x["sv"].dtype == torch.float16 and train.x["sv"].shape[1] == 256
+    xs, present, ys = train.batch(np.array([0]))
+    assert present.shape[-1] == 3 and all(y["dx"][present[..., i]].min() >= 0
+                                          for i, y in enumerate(ys))  # fmt: skip
+
+
+def test_behaviour_cloning_learns_is_seeded_and_resumes(rows, tmp_path):
+    train, val = rows
+    s = TrainSettings(epochs=4, batch=1, lr=3e-3, seed=0, hard_fraction=0.5, patience=10)
+
+    def run(folder: Path, epochs: int) -> TeamDecision:
+        torch.manual_seed(0)
+        model = TeamDecision(_cfg(), 3)
+        fit(model, train, train, replace(s, epochs=epochs), folder / "ckpt", progress=False)
+        return model
+
+    torch.manual_seed(0)
+    before = evaluate(TeamDecision(_cfg(), 3), train, hard=True)
+    model = run(tmp_path / "a", 4)
+    after = evaluate(model, train, hard=True)
+    assert after["loss"] < before["loss"] * 0.8, (before["loss"], after["loss"])
+    same = run(tmp_path / "b", 4)
+    assert all(torch.equal(p, q) for p, q in zip(model.parameters(), same.parameters(),
+                                                 strict=True))  # fmt: skip
+    run(tmp_path / "c", 2)  # interrupted after two epochs ...
+    resumed = run(tmp_path / "c", 4)  # ... and resumed
+    assert all(torch.equal(p, q) for p, q in zip(model.parameters(), resumed.parameters(),
+                                                 strict=True))  # fmt: skip
+
+
+def test_a_saved_model_loads_in_fp16_precision(tmp_path):
+    torch.manual_seed(1)
+    model = TeamDecision(_cfg(), 3)
+    save_model(model, tmp_path, {"name": "x"})
+    loaded, saved = load_model(tmp_path)
+    assert saved["name"] == "x" and len(loaded.agents) == 3
+    for p, q in zip(model.parameters(), loaded.parameters(), strict=True):
+        assert torch.allclose(p, q, atol=1e-2, rtol=1e-2)
+    assert (tmp_path / "model.pt").stat().st_size < 3 * 2.5e6  # fp16, three agents
+
+
+def test_agent_config_errors_name_what_is_wrong(tmp_path, capsys):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("name: x\nout: y\nlearning_rate: 3\n")
+    with pytest.raises(ValueError, match="unknown keys \\['learning_rate'\\]"):
+        AgentConfig.load(bad)
+    bad.write_text("name: x\nout: y\ntrain: {epochz: 3}\n")
+    with pytest.raises(ValueError, match="unknown train keys"):
+        AgentConfig.load(bad)
+    bad.write_text("out: y\n")
+    with pytest.raises(ValueError, match="missing 'name'"):
+        AgentConfig.load(bad)
+    assert main(["train", str(tmp_path / "none.yaml"), "--setting", "I"]) == 2
+    assert "no such agent config" in capsys.readouterr().err
+    assert main(["eval", "--policy", str(tmp_path / "none.yaml")]) == 2
