@@ -61,3 +61,26 @@ def test_recording_holds_images_poses_messages_and_metrics(tmp_path):
         }
     assert expected <= paths, sorted(expected - paths)
     assert record.length > 0
+
+
+def test_a_learned_teams_recording_shows_t_and_its_handshake_groups(tmp_path, learned_config):
+    """HanGrCom's communication matrix, each agent's row of it and its sub-task are logged,
+    and comm/groups shows the handshake's groups (labelled), not all traffic."""
+    team = make_team(str(learned_config))
+    env = make_env(RunConfig(str(learned_config), "I", "test", None, 1), images=True)
+    env.unwrapped.max_steps = 3
+    try:
+        recorder = EpisodeRecorder(tmp_path)
+        run_episode(env, team, 0, 0, recorder)
+    finally:
+        env.close()
+    (path,) = tmp_path.glob("*.rrd")
+    printed = subprocess.run(
+        [_rerun(), "rrd", "print", "--verbose", str(path)], capture_output=True, text=True
+    ).stdout
+    paths = set(re.findall(r"(/(?:agents|comm)[A-Za-z0-9_/]*)", printed))
+    expected = {"/comm/T", "/comm/groups"} | {
+        f"/agents/agent_{i}/{leaf}" for i in range(3) for leaf in ("attention", "subtask")
+    }
+    assert expected <= paths, sorted(expected - paths)
+    assert "(group 0)" in printed
