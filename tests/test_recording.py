@@ -63,14 +63,29 @@ def test_recording_holds_images_poses_messages_and_metrics(tmp_path):
     assert record.length > 0
 
 
+class LogSpy(EpisodeRecorder):
+    """Keeps what was logged where, besides writing the recording."""
+
+    def start(self, env, team, channel) -> None:
+        super().start(env, team, channel)
+        self.logged: list[tuple[str, tuple]] = []
+        write = self.rec.log
+
+        def log(path, *args, **kwargs):
+            self.logged.append((path, args))
+            return write(path, *args, **kwargs)
+
+        self.rec.log = log
+
+
 def test_a_learned_teams_recording_shows_t_and_its_handshake_groups(tmp_path, learned_config):
     """HanGrCom's communication matrix, each agent's row of it and its sub-task are logged,
     and comm/groups shows the handshake's groups (labelled), not all traffic."""
     team = make_team(str(learned_config))
     env = make_env(RunConfig(str(learned_config), "I", "test", None, 1), images=True)
     env.unwrapped.max_steps = 3
+    recorder = LogSpy(tmp_path)
     try:
-        recorder = EpisodeRecorder(tmp_path)
         run_episode(env, team, 0, 0, recorder)
     finally:
         env.close()
@@ -83,4 +98,6 @@ def test_a_learned_teams_recording_shows_t_and_its_handshake_groups(tmp_path, le
         f"/agents/agent_{i}/{leaf}" for i in range(3) for leaf in ("attention", "subtask")
     }
     assert expected <= paths, sorted(expected - paths)
-    assert "(group 0)" in printed
+    nodes = [args[0] for where, args in recorder.logged if where == "comm/groups"]
+    labels = [str(n.labels.as_arrow_array().to_pylist()) for n in nodes if hasattr(n, "labels")]
+    assert len(labels) == 3 and all("(group 0)" in text for text in labels), labels
