@@ -152,3 +152,40 @@ def test_agent_config_errors_name_what_is_wrong(tmp_path, capsys):
     assert main(["train", str(tmp_path / "none.yaml"), "--setting", "I"]) == 2
     assert "no such agent config" in capsys.readouterr().err
     assert main(["eval", "--policy", str(tmp_path / "none.yaml")]) == 2
+
+
+class Legal:
+    """Checks every action against the acting agent's capability."""
+
+    def start(self, env, team, channel) -> None:
+        self.env, self.actions = env, 0
+
+    def decided(self, t, actions, labels) -> None:
+        from maniskill_tidy.envs.actions import Targeted, parse_action
+
+        for a in self.env.agents:
+            if a.name in actions:
+                parse_action(actions[a.name], a.n_actions, a.name)  # raises if illegal
+                act = actions[a.name]
+                act = act.action if isinstance(act, Targeted) else Action(int(act))
+                assert a.manipulator or act < Action.PickUp, (a.name, act)
+                assert a.name in labels  # it says which sub-task and sub-goal it pursues
+                self.actions += 1
+
+
+@pytest.mark.parametrize("setting", ["I"])
+def test_the_shipped_hangrcom_team_loads_and_plays_a_short_episode(setting):
+    from maniskill_tidy.eval.episode import play_episode
+    from maniskill_tidy.eval.runner import RunConfig, make_env
+    from maniskill_tidy.policies import make_team
+
+    env = make_env(RunConfig("hangrcom", setting, "test", None, 1))
+    env.unwrapped.max_steps = 12
+    legal = Legal()
+    try:
+        record = play_episode(env, make_team("hangrcom"), 0, 0, [legal])
+        stopped = all(a.stopped for a in env.unwrapped.agents)
+    finally:
+        env.close()
+    assert record.length == 12 or (record.length < 12 and stopped)
+    assert legal.actions >= record.length and record.comm > 0

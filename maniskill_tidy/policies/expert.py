@@ -153,6 +153,9 @@ class ExpertTeam(PrivilegedTeam):
             if action is not None:
                 return action
             return self._operate(agent, job)
+        # nothing it can do from here (no reachable viewpoint for anything left): stop
+        stop = subgoal(agent, [agent.cell], agent.rotation, "NoAction", True)
+        self._labels[agent.name] = (SubTask(EXPLORE), stop)
         return Action.Stop
 
     def _operate(self, agent: AgentState, job: Job) -> Any:
