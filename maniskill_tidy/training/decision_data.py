@@ -20,7 +20,9 @@ team runs at evaluation. Per agent and step (one *row*) a shard stores
 Rows are ordered by episode, agent, step; ``episode`` indexes the shard's ``episodes`` (JSON:
 id, seed, success, length, team). A stopped agent has no rows after its Stop. One ``.npz`` per
 house, written atomically; a rerun skips finished houses. ``manifest.json`` holds the dataset
-hash, the configuration, counts, the expert's success, the wall time and a hash of the shards.
+hash, the configuration, counts, the expert's success, the wall time, the rendering time per
+trajectory (each shard records its own, so a crashed run's houses keep theirs) and a hash of
+the shards.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from __future__ import annotations
 import dataclasses
 import io
 import json
+import time
 from collections import defaultdict
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -197,10 +200,12 @@ def _house_demos(job: tuple[str, list[int], str]) -> None:
     house, indices, shard = job
     env, cfg = _worker["env"], _worker["cfg"]
     recorder = DemoRecorder()
+    started = time.perf_counter()
     for i in indices:
         play_episode(env, ExpertTeam(), i, cfg.seed + i, [recorder])
     buf = io.BytesIO()
-    np.savez_compressed(buf, **recorder.arrays(house))
+    seconds = np.array(time.perf_counter() - started)  # this house, one process
+    np.savez_compressed(buf, **recorder.arrays(house), seconds=seconds)
     write_atomic(Path(shard), buf.getvalue())
 
 
@@ -253,8 +258,13 @@ def build_demo_features(
                desc=f"demos {cfg.setting} {cfg.split}", disable=not progress)  # fmt: skip
     seconds = run_house_jobs(jobs, _init, (dataset, cfg), _house_demos, workers, bar)
     counts = {"trajectories": 0, "successes": 0, "rows": 0, "detections": 0, "bytes": 0}
+    timed = {"houses": 0, "trajectories": 0, "seconds": 0.0}  # shards that say how long
     for shard in sorted(directory.glob("house_*.npz")):
         with np.load(shard) as z:
+            if "seconds" in z.files:
+                timed["houses"] += 1
+                timed["trajectories"] += len(json.loads(str(z["episodes"])))
+                timed["seconds"] += float(z["seconds"])
             eps = json.loads(str(z["episodes"]))
             counts["trajectories"] += len(eps)
             counts["successes"] += sum(e["success"] for e in eps)
@@ -269,6 +279,9 @@ def build_demo_features(
         "expert_success": round(counts["successes"] / max(counts["trajectories"], 1), 4),
         "demos_hash": shards_digest(directory, "house_*.npz"),
         "seconds": total_seconds(directory / "manifest.json", seconds),
+        "render_seconds_per_trajectory": round(timed["seconds"] / timed["trajectories"], 2)
+        if timed["trajectories"]
+        else None,  # one process, over the shards that recorded their time
         "code_version": code_version(),
     }
     write_atomic(directory / "manifest.json", json.dumps(manifest, indent=1).encode())

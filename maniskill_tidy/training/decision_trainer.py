@@ -422,18 +422,18 @@ def model_card(card: dict) -> str:
         lines.append(
             f"- {split} demonstrations: {m['trajectories']} trajectories ({m['tasks']} meta-tasks"
             f" per house x {m['starts']} start), {m['rows']} agent-steps, expert success "
-            f"{m['expert_success']:.3f}, rendered in {m['seconds']:.0f} s, hash "
+            f"{m['expert_success']:.3f}, hash "
             f"`{m['demos_hash'][:12]}`"
         )
     train = card["demos"]["train"]
-    if train["trajectories"]:
-        each = train["seconds"] / train["trajectories"]
-        full = each * card.get("full_trajectories", 0) / 3600
+    each = train.get("render_seconds_per_trajectory")
+    if each:
+        full = each * card.get("full_trajectories", 0) / 3600 / 2
         lines.append(
-            f"- why this many: rendering took {each:.1f} s per trajectory (2 processes); the "
-            f"paper's 5 starts of all 10 meta-tasks of every train house would take {full:.1f} h"
-            " on this machine, so the shipped model uses the first start of the first "
-            f"{train['tasks']} meta-tasks per house"
+            f"- why this many: rendering takes {each:.0f} s per trajectory in one process; the "
+            f"paper's 5 starts of all 10 meta-tasks of every train house would take {full:.0f} h"
+            " with 2 processes on this machine, so the shipped model uses the first start of "
+            f"the first {train['tasks']} meta-tasks per house"
         )
     lines += [
         "",
