@@ -262,11 +262,13 @@ def fit(
     """Train (resumable); leaves the best-on-val weights (inference-mode loss) in ``model``."""
     optimiser = torch.optim.Adam(model.parameters(), lr=s.lr)
     rng = np.random.default_rng(s.seed)
+    # a checkpoint made with another model or other settings is started over, not resumed
+    key = json.dumps([asdict(model.cfg), {**asdict(s), "epochs": None, "patience": None}])
     state = {"epoch": 0, "best": float("inf"), "best_epoch": 0, "best_state": None,
              "curve": [], "seconds": 0.0}  # fmt: skip
     if checkpoint.is_file():
         saved = torch.load(checkpoint, weights_only=False)
-        if saved["data"] == [train.hash, val.hash]:
+        if saved["data"] == [train.hash, val.hash] and saved.get("settings") == key:
             model.load_state_dict(saved["model"])
             optimiser.load_state_dict(saved["optimiser"])
             rng.bit_generator.state = saved["rng"]
@@ -298,7 +300,8 @@ def fit(
         buf = io.BytesIO()
         torch.save({"model": model.state_dict(), "optimiser": optimiser.state_dict(),
                     "rng": rng.bit_generator.state, "torch_rng": torch.get_rng_state(),
-                    "state": state, "data": [train.hash, val.hash]}, buf)  # fmt: skip
+                    "state": state, "data": [train.hash, val.hash], "settings": key},
+                   buf)  # fmt: skip
         write_atomic(checkpoint, buf.getvalue())
         bar.update(1)
         bar.set_postfix(train=f"{state['curve'][-1]['train']:.3f}", val=f"{state['best']:.3f}")
