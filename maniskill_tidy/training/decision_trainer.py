@@ -71,6 +71,7 @@ class AgentConfig:
     val_demos: dict = field(default_factory=lambda: {"starts": 1, "tasks": 2})
     model: dict = field(default_factory=dict)
     train: dict = field(default_factory=dict)
+    notes: str = ""  # printed in the model card (e.g. why this many demonstrations)
 
     @classmethod
     def load(cls, path: Path) -> AgentConfig:
@@ -245,8 +246,19 @@ def evaluate(model: TeamDecision, rows: Rows, hard: bool, batch: int = 16) -> di
     return {
         "loss": float(np.mean(losses)),
         "accuracy": {h: correct[h] / count[h] if count[h] else None for h in LABELS},
+        "majority": majority(rows),
         "labelled": count,
     }
+
+
+def majority(rows: Rows) -> dict[str, float | None]:
+    """Each head's accuracy when always answering its most frequent label (the trivial
+    baseline the card compares with)."""
+    out = {}
+    for head in LABELS:
+        y = rows.y[head][rows.y[head] >= 0]
+        out[head] = float(torch.bincount(y).max()) / len(y) if len(y) else None
+    return out
 
 
 # ------------------------------------------------------------------- training
@@ -391,6 +403,7 @@ def train_decision(config: Path, setting: str, progress: bool = True) -> dict:
         "val_inference_mode": evaluate(model, val, hard=True),
         "val_training_mode": evaluate(model, val, hard=False),
         "code_version": code_version(),
+        "notes": cfg.notes.strip(),
     }
     folder = Path(cfg.out) / f"setting_{setting}"
     save_model(model, folder, {"name": cfg.name, "perception": str(perception)})
@@ -438,17 +451,20 @@ def model_card(card: dict) -> str:
             " with 2 processes on this machine, so the shipped model uses the first start of "
             f"the first {train['tasks']} meta-tasks per house"
         )
+    if card.get("notes"):
+        lines.append(f"- {card['notes']}")
     lines += [
         "",
         "Validation accuracy of every head (rows with a label), inference-mode HanGrCom "
         "(thresholded handshake) and training mode (soft):",
         "",
-        "| head | inference mode | training mode | labelled rows |",
-        "|---|---|---|---|",
+        "| head | inference mode | training mode | most frequent label | labelled rows |",
+        "|---|---|---|---|---|",
     ]
     for head in LABELS:
         a, b = (_fmt(m["accuracy"][head]) for m in (hard, soft))
-        lines.append(f"| {head} | {a} | {b} | {hard['labelled'][head]} |")
+        base = _fmt(hard.get("majority", {}).get(head))
+        lines.append(f"| {head} | {a} | {b} | {base} | {hard['labelled'][head]} |")
     lines += [
         "",
         f"Validation loss: {hard['loss']:.3f} (inference), {soft['loss']:.3f} (soft).",
