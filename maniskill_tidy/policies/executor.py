@@ -34,6 +34,16 @@ def goal_cell(state: AgentState, goal: SubGoal) -> Cell:
     return (row + goal.dy * fr + goal.dx * rr, col + goal.dy * fc + goal.dx * rc)
 
 
+def relative(state: AgentState, cell: Cell, rotation: int, ope: str, stop: bool) -> SubGoal:
+    """The sub-goal that names ``cell`` and ``rotation`` from where the agent stands now."""
+    dr, dc = cell[0] - state.cell[0], cell[1] - state.cell[1]
+    fr, fc = HEADING[state.rotation]
+    rr, rc = HEADING[(state.rotation - 90) % 360]
+    return SubGoal(
+        dr * rr + dc * rc, dr * fr + dc * fc, (rotation - state.rotation) % 360, ope, stop
+    )
+
+
 class SubGoalExecutor:
     def __init__(self, planner: GridPlanner, rng: np.random.Generator) -> None:
         self.planner, self.rng = planner, rng

@@ -38,12 +38,13 @@ from maniskill_tidy.policies.base import (
     Team,
 )
 from maniskill_tidy.policies.channel import Message, Outbox
-from maniskill_tidy.policies.executor import SubGoalExecutor
+from maniskill_tidy.policies.executor import SubGoalExecutor, goal_cell, relative
 from maniskill_tidy.policies.handshake_exchange import HandshakeExchange
 from maniskill_tidy.policies.navigation import GridPlanner
 from maniskill_tidy.tasks.teams import SETTINGS
 
 REPO = Path(__file__).resolve().parents[2]
+COMMIT_STEPS = 4  # env steps a sub-goal is pursued before a new prediction replaces it
 DEFAULT_CONFIG = Path("agents/hangrcom.yaml")
 
 
@@ -94,6 +95,7 @@ class LearnedAgent(Agent):
         self._label: Label | None = None
         self._trace: dict = {}
         self._last_op: Action | None = None
+        self.commit: tuple | None = None  # (cell, rotation, ope, stop, subtask, since step)
 
     # ------------------------------------------------------------------ perception
     def observe(self, view: AgentView) -> None:
@@ -150,48 +152,63 @@ class LearnedAgent(Agent):
         return action
 
     def _act(self, d: Decision) -> Action | Targeted:
-        s, goal = self.state, d.subgoal
+        """Pursue the committed sub-goal (a new prediction is adopted once it is reached, or
+        after COMMIT_STEPS steps): re-adopting every step makes agents dither."""
+        s = self.state
+        if self.commit is None or self.t - self.commit[-1] >= COMMIT_STEPS:
+            g = d.subgoal
+            cell = goal_cell(s, g)
+            self.commit = (cell, (s.rotation + g.drot) % 360, g.ope, g.stop, d.subtask, self.t)
+        cell, rotation, ope, stop, subtask, _ = self.commit
+        goal = relative(s, cell, rotation, ope, stop)
         move = self.executor.move(s, goal, self.t)
         if move is not None:
             return move
+        self.commit = None  # reached: the next step adopts a new prediction
         # an operation that just failed here: look elsewhere before trying it again
         retry = self.failed and self._last_op in (Action.PickUp, Action.PutDown)
-        if self.capability[1] and goal.ope != "NoAction" and not retry:
-            if goal.ope == "PickUp" and s.held is None:
-                return self._pick(d.subtask)
-            if goal.ope == "PutDown" and s.held is not None:
-                return self._put(d.subtask)
-            if goal.ope == "Drop" and s.held is not None:
-                return Action.Drop
-        if goal.stop:
+        if self.capability[1] and ope != "NoAction" and not retry:
+            op = None
+            if ope == "PickUp" and s.held is None:
+                op = self._pick(subtask)
+            elif ope == "PutDown" and s.held is not None:
+                op = self._put(subtask)
+            elif ope == "Drop" and s.held is not None:
+                op = Action.Drop
+            if op is not None:
+                return op
+        if stop:
             return Action.Stop
         return self.executor.look(s)
 
-    def _pick(self, subtask: SubTask) -> Action | Targeted:
+    def _pick(self, subtask: SubTask) -> Targeted | None:
         """The detected object in reach of the predicted type (else the likeliest misplaced)."""
         f: FrameInputs = self.frame
         here = np.asarray(self.public.house.navgrid.center(*self.state.cell))
         near = [i for i in range(len(f.det_object))
                 if np.hypot(*(f.det_position[i, :2] - here)) <= REACH]  # fmt: skip
         if not near:
-            return Action.PickUp
+            return None  # nothing to pick up in reach: not worth a failed action
         kind = load_catalog().categories
         same = [i for i in near if kind[f.det_type[i]] == subtask.object_type]
         best = max(same or near, key=lambda i: self.p_detections[i])
         return Targeted(Action.PickUp, f.det_object[best])
 
-    def _put(self, subtask: SubTask) -> Action | Targeted:
-        """A visible surface of the predicted receptacle type (else the env's choice)."""
+    def _put(self, subtask: SubTask) -> Action | Targeted | None:
+        """A visible surface of the predicted receptacle type, else the env's choice among the
+        visible furniture, or None when no furniture is in view."""
         ids, counts = np.unique(self.seg, return_counts=True)
+        furniture = False
         for sid, n in sorted(zip(ids, counts, strict=True), key=lambda p: -p[1]):
             inst = self.public.instances.get(int(sid))
             if inst is None or inst.kind != "furniture" or n < MIN_PIXELS:
                 continue
             f = self.furniture.get(inst.id.split("/")[0])
+            furniture = True
             for surface in f.surfaces if f is not None else []:
                 if surface.receptacle_type == subtask.receptacle_type:
                     return Targeted(Action.PutDown, f"{f.id}/{surface.name}")
-        return Action.PutDown
+        return Action.PutDown if furniture else None
 
     def label(self) -> Label | None:
         return self._label
