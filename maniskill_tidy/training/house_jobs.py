@@ -14,6 +14,25 @@ from pathlib import Path
 from tqdm import tqdm
 
 
+def worker_env(dataset: str | None, setting: str, split: str):
+    """A worker's env, with every camera image (made once per process; the process dies with
+    its parent)."""
+    import gymnasium as gym
+
+    import maniskill_tidy  # noqa: F401  (registers the env)
+    from maniskill_tidy.eval.runner import _die_with_parent
+
+    _die_with_parent()
+    return gym.make(
+        "HeteroTidy-v1",
+        setting=setting,
+        dataset=dataset,
+        split=split,
+        obs_mode="rgb+depth+segmentation",
+        reward_mode="none",
+    )
+
+
 def run_house_jobs(
     jobs: list,
     init: Callable,

@@ -47,6 +47,7 @@ from maniskill_tidy.training.house_jobs import (
     run_house_jobs,
     shards_digest,
     total_seconds,
+    worker_env,
 )
 
 FORMAT_VERSION = 1
@@ -205,20 +206,7 @@ _worker: dict = {}
 
 
 def _init(dataset: str | None, cfg: ViewsConfig):
-    import gymnasium as gym
-
-    import maniskill_tidy  # noqa: F401
-    from maniskill_tidy.eval.runner import _die_with_parent
-
-    _die_with_parent()
-    env = gym.make(
-        "HeteroTidy-v1",
-        setting=cfg.setting,
-        dataset=dataset,
-        split=cfg.split,
-        obs_mode="rgb+depth+segmentation",
-        reward_mode="none",
-    )
+    env = worker_env(dataset, cfg.setting, cfg.split)
     _worker.update(env=env, cfg=cfg)
     return env.close
 
