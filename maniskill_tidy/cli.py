@@ -108,12 +108,13 @@ def _demos(args: argparse.Namespace) -> int:
 
         out = Path(args.out or "data/demos")
         cfg = DemoConfig(args.setting, args.split, args.starts, args.tasks_per_house,
-                         args.houses, args.seed)  # fmt: skip
+                         args.houses, args.seed, args.teacher)  # fmt: skip
         m = build_demo_features(out, args.dataset, cfg, workers=args.workers)
         folder = out / f"setting_{args.setting}" / args.split
         print(
             f"{m['trajectories']} trajectories ({m['rows']} agent-steps, "
-            f"{m['bytes'] / 1e6:.0f} MB, expert success {m['expert_success']:.3f}) in {folder}"
+            f"{m['bytes'] / 1e6:.0f} MB, {cfg.teacher} success {m['teacher_success']:.3f}) "
+            f"in {folder}"
         )
         return 0
     from maniskill_tidy.training.demonstrations import write_demonstrations
@@ -449,6 +450,10 @@ def build_parser() -> argparse.ArgumentParser:
     dm.add_argument("--tasks-per-house", type=int, help="with --features: meta-tasks per house")
     dm.add_argument("--houses", type=int, help="with --features: only the first N houses")
     dm.add_argument("--workers", type=int, default=2, help="with --features: rendering processes")
+    dm.add_argument(
+        "--teacher", default="expert",
+        help="with --features: the team whose labels are imitated (expert, heuristic-*)",
+    )  # fmt: skip
     dm.set_defaults(func=_demos)
 
     tr = sub.add_parser("train", help="train the paper's learned modules (CPU)")

@@ -75,6 +75,24 @@ def test_demos_resume_and_refuse_another_configuration(demos, small_dataset):
     assert m["demos_hash"] == json.loads((folder / "manifest.json").read_text())["demos_hash"]
     with pytest.raises(ValueError, match="starts"):
         build_demo_features(demos, str(small_dataset), replace(DEMOS, starts=2), progress=False)
+    with pytest.raises(ValueError, match="teacher"):  # one teacher per folder
+        build_demo_features(
+            demos, str(small_dataset), replace(DEMOS, teacher="heuristic-none"), progress=False
+        )
+    with pytest.raises(ValueError, match="unknown teacher 'oracle'"):
+        build_demo_features(demos, str(small_dataset), replace(DEMOS, teacher="oracle"))
+
+
+def test_a_camera_only_team_can_teach(small_dataset, tmp_path):
+    """Demos from heuristic-none: its own labels, with exploration, line up with its actions."""
+    cfg = replace(DEMOS, teacher="heuristic-none")
+    m = build_demo_features(tmp_path, str(small_dataset), cfg, progress=False)
+    assert m["teacher"] == "heuristic-none" and m["trajectories"] == 1
+    d = load_demo_features(tmp_path / "setting_I" / "train")
+    assert (d["kind"] == 0).any(), "it searches before it knows of a misplaced object"
+    picks = d["action"] == int(Action.PickUp)
+    assert picks.any() and (d["ope"][picks] == OPERATIONS.index("PickUp")).all()
+    assert (d["object"][d["kind"] == 1] >= 0).all()
 
 
 @pytest.fixture(scope="module")

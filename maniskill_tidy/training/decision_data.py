@@ -1,7 +1,11 @@
-"""Demonstrations with features: what every agent perceived at every step, with the expert's labels.
+"""Demonstrations with features: what every agent perceived at every step, and a teacher's labels.
 
-The privileged expert (``policies/expert.py``) plays ``starts`` start configurations of every
-meta-task of a split's houses, rendering every camera. Each agent fuses its own semantic map
+A teacher team plays ``starts`` start configurations of every meta-task of a split's houses,
+rendering every camera. The paper's teacher is the privileged expert (``policies/expert.py``);
+any team that labels its steps with sub-tasks and sub-goals can teach (``teacher``: the
+camera-only heuristic teams of ``policies/heuristic.py`` do), which matters because a student
+that sees only through its cameras cannot imitate an expert that walks straight to objects
+nobody has seen (README, "The learned team"). Each agent fuses its own semantic map
 and reads its inputs off its own observation with :class:`FrameReader`, the code the learned
 team runs at evaluation. Per agent and step (one *row*) a shard stores
 
@@ -11,16 +15,18 @@ team runs at evaluation. Per agent and step (one *row*) a shard stores
   ``capability``, ``held`` (type or -1), ``failed`` (its own last action failed), and one
   detection per pickupable object in view (``det_row``, ``det_type``, ``det_rest``,
   ``det_numeric``: the inputs of ``sl``);
-- the expert's labels: the sub-task ``(Explore | Place, o, p, r)`` as ``kind`` (0 Explore, 1
+- the teacher's labels: the sub-task ``(Explore | Place, o, p, r)`` as ``kind`` (0 Explore, 1
   Place), ``object`` (index in the catalog's pickupable types), ``receptacle`` (catalog
   receptacles), ``room`` (``ROOM_TYPES``), -1 where the sub-task has none; the sub-goal as
   ``dx``, ``dy`` (-4..4), ``drot`` (0..3 quarter turns), ``ope`` (index in ``OPERATIONS``),
-  ``stop``; and the low-level ``action`` it took (for the w/o HierDec. ablation).
+  ``stop``; and the low-level ``action`` it took (for the w/o HierDec. ablation). A step in
+  which a heuristic agent acts before it has ever labelled one (a side-step at the very start)
+  has no row.
 
 Rows are ordered by episode, agent, step; ``episode`` indexes the shard's ``episodes`` (JSON:
 id, seed, success, length, team). A stopped agent has no rows after its Stop. One ``.npz`` per
 house, written atomically; a rerun skips finished houses. ``manifest.json`` holds the dataset
-hash, the configuration, counts, the expert's success, the wall time, the rendering time per
+hash, the configuration, counts, the teacher's success, the wall time, the rendering time per
 trajectory (each shard records its own, so a crashed run's houses keep theirs) and a hash of
 the shards.
 """
@@ -48,6 +54,7 @@ from maniskill_tidy.training.house_jobs import (
     run_house_jobs,
     shards_digest,
     total_seconds,
+    worker_env,
 )
 
 FORMAT_VERSION = 1
@@ -66,6 +73,7 @@ class DemoConfig:
     tasks: int | None = None  # meta-tasks per house (None: all 10)
     houses: int | None = None  # only the split's first N houses (tests, quick looks)
     seed: int = 0
+    teacher: str = "expert"  # the team whose labels are imitated (a registered policy name)
 
 
 def subtask_codes(subtask) -> tuple[int, int, int, int]:
@@ -95,7 +103,7 @@ def subgoal_codes(subgoal) -> tuple[int, int, int, int, int]:
 
 
 class DemoRecorder:
-    """An episode observer (``eval/episode.py``): each agent's inputs and the expert's labels."""
+    """An episode observer (``eval/episode.py``): each agent's inputs and the teacher's labels."""
 
     def __init__(self) -> None:
         self.rows: dict[str, list] = defaultdict(list)
@@ -121,7 +129,7 @@ class DemoRecorder:
     def decided(self, t: int, actions: dict, labels: dict) -> None:
         e = len(self.episodes)
         for i, a in enumerate(self.env.agents):
-            if a.name not in actions:
+            if a.name not in actions or a.name not in labels:
                 continue
             f, failed = self.pending[a.name]
             subtask, subgoal = labels[a.name]
@@ -175,34 +183,21 @@ _worker: dict = {}
 
 
 def _init(dataset: str | None, cfg: DemoConfig):
-    import gymnasium as gym
-
-    import maniskill_tidy  # noqa: F401
-    from maniskill_tidy.eval.runner import _die_with_parent
-
-    _die_with_parent()
-    env = gym.make(
-        "HeteroTidy-v1",
-        setting=cfg.setting,
-        dataset=dataset,
-        split=cfg.split,
-        obs_mode="rgb+depth+segmentation",
-        reward_mode="none",
-    )
+    env = worker_env(dataset, cfg.setting, cfg.split)
     _worker.update(env=env, cfg=cfg)
     return env.close
 
 
 def _house_demos(job: tuple[str, list[int], str]) -> None:
     from maniskill_tidy.eval.episode import play_episode
-    from maniskill_tidy.policies.expert import ExpertTeam
+    from maniskill_tidy.policies import make_team
 
     house, indices, shard = job
     env, cfg = _worker["env"], _worker["cfg"]
     recorder = DemoRecorder()
     started = time.perf_counter()
     for i in indices:
-        play_episode(env, ExpertTeam(), i, cfg.seed + i, [recorder])
+        play_episode(env, make_team(cfg.teacher), i, cfg.seed + i, [recorder])
     buf = io.BytesIO()
     seconds = np.array(time.perf_counter() - started)  # this house, one process
     np.savez_compressed(buf, **recorder.arrays(house), seconds=seconds)
@@ -235,9 +230,13 @@ def build_demo_features(
 
     import maniskill_tidy  # noqa: F401
     from maniskill_tidy.eval.runner import code_version
+    from maniskill_tidy.policies import POLICIES
 
     if cfg.starts < 1 or (cfg.tasks is not None and cfg.tasks < 1):
         raise ValueError(f"--starts and --tasks must be at least 1, got {cfg.starts}, {cfg.tasks}")
+    teachers = sorted(set(POLICIES) - {"hangrcom", "random"})
+    if cfg.teacher not in teachers:
+        raise ValueError(f"unknown teacher {cfg.teacher!r}; expected one of {teachers}")
     probe = gym.make(
         "HeteroTidy-v1", setting=cfg.setting, dataset=dataset, split=cfg.split, obs_mode="none"
     )
@@ -276,7 +275,7 @@ def build_demo_features(
         **want,
         "houses_done": len(list(directory.glob("house_*.npz"))),
         **counts,
-        "expert_success": round(counts["successes"] / max(counts["trajectories"], 1), 4),
+        "teacher_success": round(counts["successes"] / max(counts["trajectories"], 1), 4),
         "demos_hash": shards_digest(directory, "house_*.npz"),
         "seconds": total_seconds(directory / "manifest.json", seconds),
         "render_seconds_per_trajectory": round(timed["seconds"] / timed["trajectories"], 2)

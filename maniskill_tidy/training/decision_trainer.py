@@ -95,7 +95,7 @@ class AgentConfig:
             if bad:
                 raise ValueError(f"{path}: unknown {section} keys {bad}; expected {sorted(names)}")
         for section in ("train_demos", "val_demos"):
-            bad = sorted(set(getattr(cfg, section)) - {"starts", "tasks", "houses"})
+            bad = sorted(set(getattr(cfg, section)) - {"starts", "tasks", "houses", "teacher"})
             if bad:
                 raise ValueError(f"{path}: unknown {section} keys {bad}")
         return cfg
@@ -384,9 +384,10 @@ def train_decision(config: Path, setting: str, progress: bool = True) -> dict:
                 k: m[k]
                 for k in (
                     "demos_hash",
+                    "teacher",
                     "trajectories",
                     "rows",
-                    "expert_success",
+                    "teacher_success",
                     "seconds",
                     "starts",
                     "tasks",
@@ -437,8 +438,8 @@ def model_card(card: dict) -> str:
     for split, m in card["demos"].items():
         lines.append(
             f"- {split} demonstrations: {m['trajectories']} trajectories ({m['tasks']} meta-tasks"
-            f" per house x {m['starts']} start), {m['rows']} agent-steps, expert success "
-            f"{m['expert_success']:.3f}, hash "
+            f" per house x {m['starts']} start), {m['rows']} agent-steps, teacher "
+            f"{m['teacher']} (success {m['teacher_success']:.3f}), hash "
             f"`{m['demos_hash'][:12]}`"
         )
     train = card["demos"]["train"]
