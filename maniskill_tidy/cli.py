@@ -400,7 +400,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--policy",
         required=True,
         help="a team name: expert, random, sa, heuristic-none, heuristic-detection, "
-        "heuristic-broadcast, heuristic-central (an unknown name lists what is registered)",
+        "heuristic-broadcast, heuristic-central, hangrcom (an unknown name lists what is "
+        "registered), or a learned team's agent config (agents/*.yaml)",
     )
     ev.add_argument("--setting", default="I", help="I, II or a preset JSON file")
     ev.add_argument("--split", default="test", choices=("train", "val", "test"))

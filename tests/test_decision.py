@@ -13,7 +13,7 @@ import torch
 from maniskill_tidy.cli import main
 from maniskill_tidy.envs.actions import Action
 from maniskill_tidy.knowledge import load_catalog
-from maniskill_tidy.models.decision import DecisionConfig, TeamDecision
+from maniskill_tidy.models.decision import DecisionConfig, TeamDecision, crop_layout
 from maniskill_tidy.policies.base import OPERATIONS
 from maniskill_tidy.training.decision_data import (
     DemoConfig,
@@ -105,7 +105,9 @@ def rows(demos, tmp_path_factory):
 
 def _cfg() -> DecisionConfig:
     catalog = load_catalog()
-    return DecisionConfig(objects=len(catalog.pickupable), receptacles=len(catalog.receptacles))
+    return DecisionConfig(
+        objects=len(catalog.pickupable), receptacles=len(catalog.receptacles), layout=True
+    )
 
 
 def test_features_line_up_with_the_rows(rows):
@@ -117,6 +119,10 @@ def test_features_line_up_with_the_rows(rows):
     )
     assert train.x["sv"].dtype == torch.float16 and train.x["sv"].shape[1] == 256
     xs, present, ys = train.batch(np.array([0]))
+    layout = xs[2]["layout"][present[..., 2]]  # the manipulator's map, step by step
+    assert layout.dtype == torch.uint8 and layout.shape[1:] == (20, 20, 3)
+    explored = layout[..., 1].flatten(1).sum(1)
+    assert explored[-1] > explored[0] > 0, "its map grows as it moves"
     assert present.shape[-1] == 3 and all(y["dx"][present[..., i]].min() >= 0
                                           for i, y in enumerate(ys))  # fmt: skip
 
@@ -143,6 +149,15 @@ def test_behaviour_cloning_learns_is_seeded_and_resumes(rows, tmp_path):
     resumed = run(tmp_path / "c", 4)  # ... and resumed
     assert all(torch.equal(p, q) for p, q in zip(model.parameters(), resumed.parameters(),
                                                  strict=True))  # fmt: skip
+
+
+def test_crop_layout_keeps_obstacles_explored_cells_and_any_object():
+    k = len(load_catalog().categories)
+    crop = np.zeros((20, 20, k + 2), bool)
+    crop[0, 0, 0] = crop[1, 1, 1] = crop[2, 2, 2 + 7] = crop[3, 3, 2 + k - 1] = True
+    layout = crop_layout(crop)
+    assert layout.shape == (20, 20, 3) and layout.sum() == 4
+    assert layout[0, 0, 0] and layout[1, 1, 1] and layout[2, 2, 2] and layout[3, 3, 2]
 
 
 def test_a_saved_model_loads_in_fp16_precision(tmp_path):

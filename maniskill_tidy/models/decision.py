@@ -7,18 +7,22 @@ Per agent and step, from the frozen perception features (``PerceptionModel.step_
     (va, pose, held, failed, fd, fp, mis) ──F_s (linear + LSTM)──▶ sf
     sf ──HanGrCom generators──▶ qry, key, val, inv      (exchanged: see models/hangrcom.py)
     (sf, inn, int) ──F_a: LSTM → Linear(·, 256) = se → heads──▶ Explore/Place, o, p, r
-    (se, sm, sp, sv) ──F_g: LSTM → Linear(·, 256) → heads──▶ dx 9, dy 9, drot 4, ope 4, stop 2
+    (se, sm, sp, sv[, sl]) ──F_g: LSTM → Linear(·, 256) → heads──▶ dx 9, dy 9, drot 4, ope 4, stop 2
 
 Sizes: the paper's LSTMs have 512 hidden units; here ``hidden`` (128 by default) keeps the
 shipped fp16 checkpoints a few MB per agent; the structure is the paper's. F_s's input adds to
 the paper's (va, pose, fd, fp) the held object's type, whether the agent's own last action
 failed, and the detector's probability for the chosen detection: all of it the agent's own.
+With ``layout`` F_g also reads ``sl``, the map crop's geometry (obstacles, explored cells, any
+object) through a small CNN trained with it: the frozen ``sm`` was trained to say which
+categories the map holds, not where the unexplored space is, and a sub-goal is a direction.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
 import torch
 from torch import nn
 
@@ -27,6 +31,7 @@ from maniskill_tidy.models.hangrcom import DELTA, MU, HanGrCom
 POSE = 5  # x / 10 m, y / 10 m, cos and sin of the heading, camera pitch / 60 degrees
 HEADS_TASK = ("kind", "object", "receptacle", "room")
 HEADS_GOAL = ("dx", "dy", "drot", "ope", "stop")
+LAYOUT = 3  # crop channels sl reads: obstacle, explored, any object
 
 
 @dataclass(frozen=True)
@@ -42,6 +47,7 @@ class DecisionConfig:
     inter: int = 64  # inv
     hidden: int = 128  # F_a and F_g LSTMs (the paper's 512, shrunk)
     embed: int = 256  # se and F_g's last hidden layer (Table 2)
+    layout: bool = False  # F_g reads sl (the crop's geometry) too
     communication: str = "hangrcom"
     mu: float = MU
     delta: float = DELTA
@@ -54,6 +60,33 @@ def encode_pose(pose: torch.Tensor) -> torch.Tensor:
         [pose[..., 0] / 10, pose[..., 1] / 10, torch.cos(yaw), torch.sin(yaw), pose[..., 3] / 60],
         dim=-1,
     )
+
+
+def crop_layout(crop: np.ndarray) -> np.ndarray:
+    """(…, G, G, K + 2) 0/1 crop (semantic_map channels: obstacle, explored, categories) ->
+    (…, G, G, LAYOUT) uint8: obstacle, explored, any object."""
+    crop = np.asarray(crop, dtype=bool)
+    return np.concatenate([crop[..., :2], crop[..., 2:].any(-1, keepdims=True)], -1).astype(
+        np.uint8
+    )
+
+
+class LayoutEncoder(nn.Module):
+    """sl: a small CNN over the crop's geometry (20 x 20 x LAYOUT -> 64)."""
+
+    def __init__(self, out: int = 64) -> None:
+        super().__init__()
+        self.net = nn.Sequential(
+            nn.Conv2d(LAYOUT, 16, 3, stride=2, padding=1), nn.ReLU(),
+            nn.Conv2d(16, 32, 3, stride=2, padding=1), nn.ReLU(),
+            nn.AdaptiveAvgPool2d(4), nn.Flatten(), nn.Linear(32 * 16, out), nn.ReLU(),
+        )  # fmt: skip
+
+    def forward(self, layout: torch.Tensor) -> torch.Tensor:
+        """(…, G, G, LAYOUT) 0/1 -> (…, out)."""
+        lead = layout.shape[:-3]
+        x = layout.reshape(-1, *layout.shape[-3:]).permute(0, 3, 1, 2).float()
+        return self.net(x).reshape(*lead, -1)
 
 
 class StateExtractor(nn.Module):
@@ -101,7 +134,9 @@ class SubGoalPredictor(nn.Module):
     def __init__(self, cfg: DecisionConfig) -> None:
         super().__init__()
         self.pose = nn.Sequential(nn.Linear(POSE, 32), nn.ReLU())  # sp
-        self.lstm = nn.LSTM(cfg.embed + 2 * cfg.perception + 32, cfg.hidden, batch_first=True)
+        self.layout = LayoutEncoder() if cfg.layout else None  # sl
+        width = cfg.embed + 2 * cfg.perception + 32 + (64 if cfg.layout else 0)
+        self.lstm = nn.LSTM(width, cfg.hidden, batch_first=True)
         self.hidden = nn.Sequential(nn.Linear(cfg.hidden, cfg.embed), nn.ReLU())
         self.heads = nn.ModuleDict(
             {"dx": nn.Linear(cfg.embed, 9), "dy": nn.Linear(cfg.embed, 9),
@@ -110,8 +145,10 @@ class SubGoalPredictor(nn.Module):
         )  # fmt: skip
 
     def forward(self, se, x: dict[str, torch.Tensor], state=None):
-        sp = self.pose(encode_pose(x["pose"]))
-        h, state = self.lstm(torch.cat([se, x["sm"], sp, x["sv"]], dim=-1), state)
+        parts = [se, x["sm"], self.pose(encode_pose(x["pose"])), x["sv"]]
+        if self.layout is not None:
+            parts.append(self.layout(x["layout"]))
+        h, state = self.lstm(torch.cat(parts, dim=-1), state)
         h = self.hidden(h)
         return {k: head(h) for k, head in self.heads.items()}, state
 

@@ -24,6 +24,7 @@ import torch
 
 from maniskill_tidy.envs.actions import MIN_PIXELS, REACH, Action, AgentState, Targeted
 from maniskill_tidy.knowledge import ROOM_TYPES, load_catalog
+from maniskill_tidy.models.decision import crop_layout
 from maniskill_tidy.perception.frame_inputs import FrameInputs, FrameReader
 from maniskill_tidy.policies.base import (
     EXPLORE,
@@ -123,6 +124,7 @@ class LearnedAgent(Agent):
             pose=torch.from_numpy(f.pose)[None, None],
             held=torch.tensor([[f.held]]),
             failed=torch.tensor([[float(self.failed)]]),
+            layout=torch.from_numpy(crop_layout(f.crop))[None, None],
         )
         self.x = x
         with torch.no_grad():

@@ -35,7 +35,13 @@ import yaml
 from tqdm import tqdm
 
 from maniskill_tidy.knowledge import ROOM_TYPES, load_catalog
-from maniskill_tidy.models.decision import HEADS_GOAL, HEADS_TASK, DecisionConfig, TeamDecision
+from maniskill_tidy.models.decision import (
+    HEADS_GOAL,
+    HEADS_TASK,
+    DecisionConfig,
+    TeamDecision,
+    crop_layout,
+)
 from maniskill_tidy.tasks.dataset import write_atomic
 from maniskill_tidy.tasks.teams import SETTINGS
 from maniskill_tidy.training.decision_data import DemoConfig, build_demo_features
@@ -141,8 +147,11 @@ class Rows:
         return xs, present, ys
 
 
+FEATURES_VERSION = 2  # 2: rows carry the crop's layout (models/decision.crop_layout)
+
+
 def _feature_hash(demos_hash: str, perception: Path) -> str:
-    digest = hashlib.sha256(demos_hash.encode())
+    digest = hashlib.sha256(f"{FEATURES_VERSION}:{demos_hash}".encode())
     digest.update(hashlib.sha256((perception / "model.pt").read_bytes()).digest())
     return digest.hexdigest()[:16]
 
@@ -188,6 +197,8 @@ def embed_split(directory: Path, perception_dir: Path, cache: Path, progress: bo
                 parts.setdefault(name, []).append(f[name].half())
             for name in ("mis", "det"):
                 parts.setdefault(name, []).append(f[name])
+            layout = crop_layout(crop.reshape(-1, g, g, k + 2))
+            parts.setdefault("layout", []).append(torch.from_numpy(layout))
         parts.setdefault("pose", []).append(torch.from_numpy(d["pose"]))
         for name in ("failed", "capability", "held", *LABELS):
             parts.setdefault(name, []).append(torch.from_numpy(d[name].astype(np.int64)))
@@ -195,7 +206,7 @@ def embed_split(directory: Path, perception_dir: Path, cache: Path, progress: bo
             keys.append((episodes + int(e), int(t), int(a)))
         episodes += len(json.loads(str(d["episodes"])))
     cat = {name: torch.cat(v) for name, v in parts.items()}
-    x = {name: cat[name] for name in (*FEATURES, "mis", "det")}
+    x = {name: cat[name] for name in (*FEATURES, "mis", "det", "layout")}
     x["failed"] = cat["failed"].float()
     x["pose"] = cat["pose"].float()
     x["va"] = cat["capability"].float()
@@ -422,11 +433,13 @@ def _split_size(dataset: str, split: str) -> int:
 
 def model_card(card: dict) -> str:
     hard, soft = card["val_inference_mode"], card["val_training_mode"]
+    teacher = card["demos"]["train"].get("teacher", "expert")
+    teacher = "privileged expert" if teacher == "expert" else f"camera-only {teacher}"
     lines = [
         f"# {card['name']}, Setting {card['setting']}",
         "",
         "Hierarchical decision with HanGrCom (paper Sections 5.3-5.5), trained by behaviour "
-        "cloning on the privileged expert's sub-tasks and sub-goals (`maniskill-tidy train "
+        f"cloning on the sub-tasks and sub-goals of the {teacher} team (`maniskill-tidy train "
         f"{card['config']} --setting {card['setting']}`).",
         "",
         f"- agents: {card['agents']}, one model each, {card['parameters_per_agent']:,} "
