@@ -28,6 +28,7 @@ from maniskill_tidy.training.decision_trainer import (
     fit,
     load_model,
     save_model,
+    selection_score,
 )
 
 DEMOS = DemoConfig(setting="I", split="train", starts=1, tasks=1, houses=1)
@@ -151,6 +152,21 @@ def test_behaviour_cloning_learns_is_seeded_and_resumes(rows, tmp_path):
                                                  strict=True))  # fmt: skip
 
 
+def test_selection_by_accuracy_rewards_heads_above_the_majority_baseline():
+    better = {
+        "loss": 9.0,
+        "accuracy": {"dx": 0.5, "object": None},
+        "majority": {"dx": 0.3, "object": None},
+    }
+    worse = {
+        "loss": 8.0,
+        "accuracy": {"dx": 0.3, "object": None},
+        "majority": {"dx": 0.3, "object": None},
+    }
+    assert selection_score(better, "accuracy") < selection_score(worse, "accuracy")
+    assert selection_score(worse, "loss") < selection_score(better, "loss")
+
+
 def test_crop_layout_keeps_obstacles_explored_cells_and_any_object():
     k = len(load_catalog().categories)
     crop = np.zeros((20, 20, k + 2), bool)
@@ -179,6 +195,9 @@ def test_agent_config_errors_name_what_is_wrong(tmp_path, capsys):
     bad.write_text("name: x\nout: y\ntrain: {epochz: 3}\n")
     with pytest.raises(ValueError, match="unknown train keys"):
         AgentConfig.load(bad)
+    bad.write_text("name: x\nout: y\ntrain: {select: f1}\n")
+    with pytest.raises(ValueError, match="train select 'f1'"):
+        AgentConfig.load(bad).settings()
     bad.write_text("out: y\n")
     with pytest.raises(ValueError, match="missing 'name'"):
         AgentConfig.load(bad)

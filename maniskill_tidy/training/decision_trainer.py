@@ -59,7 +59,11 @@ class TrainSettings:
     lr: float = 1e-3
     seed: int = 0
     hard_fraction: float = 0.5
-    patience: int = 6  # epochs without a better val loss before stopping
+    patience: int = 6  # epochs without a better val score before stopping
+    # "loss": the inference-mode val loss. "accuracy": the mean over heads of val accuracy
+    # above the most frequent label; the summed loss can rise on the rare object and
+    # receptacle heads, which grow over-confident, while the sub-goal heads still improve.
+    select: str = "loss"
 
 
 @dataclass(frozen=True)
@@ -114,7 +118,10 @@ class AgentConfig:
         )  # fmt: skip
 
     def settings(self) -> TrainSettings:
-        return TrainSettings(**self.train)
+        s = TrainSettings(**self.train)
+        if s.select not in ("loss", "accuracy"):
+            raise ValueError(f"train select {s.select!r}: expected 'loss' or 'accuracy'")
+        return s
 
 
 # ------------------------------------------------------------------- features of every row
@@ -278,6 +285,15 @@ def _seeded(seed: int) -> None:
     np.random.seed(seed)
 
 
+def selection_score(metrics: dict, select: str) -> float:
+    """Lower is better."""
+    if select == "loss":
+        return metrics["loss"]
+    acc, base = metrics["accuracy"], metrics["majority"]
+    gains = [acc[h] - base[h] for h in acc if acc[h] is not None and base[h] is not None]
+    return -float(np.mean(gains))
+
+
 def fit(
     model: TeamDecision, train: Rows, val: Rows, s: TrainSettings, checkpoint: Path,
     progress: bool = True,
@@ -317,8 +333,9 @@ def fit(
         state["seconds"] += time.perf_counter() - started
         state["curve"].append({"epoch": state["epoch"], "train": total / -(-len(order) // s.batch),
                                "val": val_metrics["loss"]})  # fmt: skip
-        if val_metrics["loss"] < state["best"]:
-            state.update(best=val_metrics["loss"], best_epoch=state["epoch"],
+        score = selection_score(val_metrics, s.select)
+        if score < state["best"]:
+            state.update(best=score, best_epoch=state["epoch"],
                          best_state=copy.deepcopy(model.state_dict()))  # fmt: skip
         buf = io.BytesIO()
         torch.save({"model": model.state_dict(), "optimiser": optimiser.state_dict(),
