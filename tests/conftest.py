@@ -27,7 +27,8 @@ def learned_config(tmp_path_factory) -> Path:
 
     root = tmp_path_factory.mktemp("learned")
     config = root / "hangrcom.yaml"
-    config.write_text(f"name: hangrcom\nout: {root / 'hangrcom'}\n")
+    # layout on: the agents also run F_g's crop encoder (the shipped model does not use it)
+    config.write_text(f"name: hangrcom\nout: {root / 'hangrcom'}\nmodel: {{layout: true}}\n")
     cfg = AgentConfig.load(config)
     for setting, agents in (("I", 3), ("II", 4)):
         from maniskill_tidy.models.decision import TeamDecision
