@@ -27,6 +27,7 @@ import torch
 from torch import nn
 
 from maniskill_tidy.models.hangrcom import DELTA, MU, HanGrCom
+from maniskill_tidy.perception.semantic_map import EXPLORED, FIRST_CHANNEL, OBSTACLE
 
 POSE = 5  # x / 10 m, y / 10 m, cos and sin of the heading, camera pitch / 60 degrees
 HEADS_TASK = ("kind", "object", "receptacle", "room")
@@ -66,9 +67,8 @@ def crop_layout(crop: np.ndarray) -> np.ndarray:
     """(…, G, G, K + 2) 0/1 crop (semantic_map channels: obstacle, explored, categories) ->
     (…, G, G, LAYOUT) uint8: obstacle, explored, any object."""
     crop = np.asarray(crop, dtype=bool)
-    return np.concatenate([crop[..., :2], crop[..., 2:].any(-1, keepdims=True)], -1).astype(
-        np.uint8
-    )
+    objects = crop[..., FIRST_CHANNEL:].any(-1)
+    return np.stack([crop[..., OBSTACLE], crop[..., EXPLORED], objects], -1).astype(np.uint8)
 
 
 class LayoutEncoder(nn.Module):

@@ -124,8 +124,9 @@ class LearnedAgent(Agent):
             pose=torch.from_numpy(f.pose)[None, None],
             held=torch.tensor([[f.held]]),
             failed=torch.tensor([[float(self.failed)]]),
-            layout=torch.from_numpy(crop_layout(f.crop))[None, None],
         )
+        if self.decision.cfg.layout:
+            x["layout"] = torch.from_numpy(crop_layout(f.crop))[None, None]
         self.x = x
         with torch.no_grad():
             sf, state = self.decision.state(x, self.lstm[0])

@@ -298,7 +298,8 @@ def fit(
     model: TeamDecision, train: Rows, val: Rows, s: TrainSettings, checkpoint: Path,
     progress: bool = True,
 ) -> dict:  # fmt: skip
-    """Train (resumable); leaves the best-on-val weights (inference-mode loss) in ``model``."""
+    """Train (resumable); leaves the best-on-val weights (``s.select``, inference mode) in
+    ``model``."""
     optimiser = torch.optim.Adam(model.parameters(), lr=s.lr)
     rng = np.random.default_rng(s.seed)
     # a checkpoint made with another model or other settings is started over, not resumed
@@ -344,7 +345,10 @@ def fit(
                    buf)  # fmt: skip
         write_atomic(checkpoint, buf.getvalue())
         bar.update(1)
-        bar.set_postfix(train=f"{state['curve'][-1]['train']:.3f}", val=f"{state['best']:.3f}")
+        bar.set_postfix(
+            train=f"{state['curve'][-1]['train']:.3f}", val=f"{val_metrics['loss']:.3f}",
+            best_epoch=state["best_epoch"],
+        )  # fmt: skip
     bar.close()
     model.load_state_dict(state["best_state"])
     return state
