@@ -27,8 +27,10 @@ def learned_config(tmp_path_factory) -> Path:
 
     root = tmp_path_factory.mktemp("learned")
     config = root / "hangrcom.yaml"
-    # layout on: the agents also run F_g's crop encoder (the shipped model does not use it)
-    config.write_text(f"name: hangrcom\nout: {root / 'hangrcom'}\nmodel: {{layout: true}}\n")
+    # layout and goal_map on: the agents also run F_g's crop encoder and the goal channel
+    config.write_text(
+        f"name: hangrcom\nout: {root / 'hangrcom'}\nmodel: {{layout: true, goal_map: true}}\n"
+    )
     cfg = AgentConfig.load(config)
     for setting, agents in (("I", 3), ("II", 4)):
         from maniskill_tidy.models.decision import TeamDecision

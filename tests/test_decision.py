@@ -13,7 +13,13 @@ import torch
 from maniskill_tidy.cli import main
 from maniskill_tidy.envs.actions import Action
 from maniskill_tidy.knowledge import load_catalog
-from maniskill_tidy.models.decision import DecisionConfig, TeamDecision, crop_layout
+from maniskill_tidy.models.decision import (
+    DecisionConfig,
+    SubGoalPredictor,
+    TeamDecision,
+    crop_goal,
+    crop_layout,
+)
 from maniskill_tidy.policies.base import OPERATIONS
 from maniskill_tidy.training.decision_data import (
     DemoConfig,
@@ -174,6 +180,37 @@ def test_crop_layout_keeps_obstacles_explored_cells_and_any_object():
     layout = crop_layout(crop)
     assert layout.shape == (20, 20, 3) and layout.sum() == 4
     assert layout[0, 0, 0] and layout[1, 1, 1] and layout[2, 2, 2] and layout[3, 3, 2]
+
+
+def test_goal_map_points_at_the_subtask_target_object_or_receptacle():
+    """The goal channel holds the predicted object's cells while the hands are empty and the
+    predicted receptacle's while holding; a type the crop does not hold gives an empty goal."""
+    catalog = load_catalog()
+    k = len(catalog.categories)
+    cfg = DecisionConfig(
+        categories=k, objects=len(catalog.pickupable), receptacles=len(catalog.receptacles),
+        layout=True, goal_map=True,
+    )  # fmt: skip
+    apple, table = catalog.pickupable.index("Apple"), catalog.receptacles.index("DiningTable")
+    crop = np.zeros((20, 20, k + 2), bool)
+    crop[2, 3, 2 + catalog.category_index("Apple")] = True
+    crop[15, 5, 2 + catalog.category_index("DiningTable")] = True
+    packed = torch.from_numpy(crop_goal(crop))[None, None].repeat(1, 2, 1)
+    x = {"layout": torch.zeros(1, 2, 20, 20, 3), "goal": packed,
+         "held": torch.tensor([[-1, catalog.category_index("Apple")]])}  # fmt: skip
+    task = {"object": torch.full((1, 2, cfg.objects), -50.0),
+            "receptacle": torch.full((1, 2, cfg.receptacles), -50.0)}  # fmt: skip
+    task["object"][..., apple] = 50.0
+    task["receptacle"][..., table] = 50.0
+    goal = SubGoalPredictor(cfg).goal(x, task)
+    assert goal.shape == (1, 2, 20, 20)
+    assert goal[0, 0, 2, 3] > 0.99 and goal[0, 0].sum() < 1.01  # empty hands: the apple
+    assert goal[0, 1, 15, 5] > 0.99 and goal[0, 1].sum() < 1.01  # holding: the table
+    task["object"][..., apple] = -50.0
+    task["object"][..., catalog.pickupable.index("Mug")] = 50.0
+    assert SubGoalPredictor(cfg).goal(x, task)[0, 0].sum() < 1e-3  # no mug in the crop
+    with pytest.raises(ValueError, match="goal_map needs layout"):
+        SubGoalPredictor(replace(cfg, layout=False))
 
 
 def test_a_saved_model_loads_in_fp16_precision(tmp_path):

@@ -16,16 +16,25 @@ failed, and the detector's probability for the chosen detection: all of it the a
 With ``layout`` F_g also reads ``sl``, the map crop's geometry (obstacles, explored cells, any
 object) through a small CNN trained with it: the frozen ``sm`` was trained to say which
 categories the map holds, not where the unexplored space is, and a sub-goal is a direction.
+With ``goal_map`` (needs ``layout``) that CNN reads a fourth channel, the sub-task's target in
+the crop: the crop's pickupable-type channels weighted by F_a's softmax over ``o`` while the
+agent's hands are empty, its receptacle-type channels weighted by the softmax over ``p`` while it
+holds something. This is how the sub-goal is conditioned on the sub-task here (hierarchical
+decision); it is differentiable, so F_g's loss trains F_a's heads too. It is this project's
+addition to the paper's F_g inputs (``sm`` alone did not place a target: README, "The learned
+team").
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 import torch
 from torch import nn
 
+from maniskill_tidy.knowledge import load_catalog
 from maniskill_tidy.models.hangrcom import DELTA, MU, HanGrCom
 from maniskill_tidy.perception.semantic_map import EXPLORED, FIRST_CHANNEL, OBSTACLE
 
@@ -33,6 +42,16 @@ POSE = 5  # x / 10 m, y / 10 m, cos and sin of the heading, camera pitch / 60 de
 HEADS_TASK = ("kind", "object", "receptacle", "room")
 HEADS_GOAL = ("dx", "dy", "drot", "ope", "stop")
 LAYOUT = 3  # crop channels sl reads: obstacle, explored, any object
+
+
+@lru_cache(maxsize=1)
+def goal_channels() -> tuple[np.ndarray, np.ndarray]:
+    """Crop channels of the catalog's pickupable types and receptacle types (-1: not mapped)."""
+    catalog = load_catalog()
+    index = {name: FIRST_CHANNEL + i for i, name in enumerate(catalog.categories)}
+    obj = np.array([index.get(t, -1) for t in catalog.pickupable])
+    rec = np.array([index.get(t, -1) for t in catalog.receptacles])
+    return obj, rec
 
 
 @dataclass(frozen=True)
@@ -49,6 +68,7 @@ class DecisionConfig:
     hidden: int = 128  # F_a and F_g LSTMs (the paper's 512, shrunk)
     embed: int = 256  # se and F_g's last hidden layer (Table 2)
     layout: bool = False  # F_g reads sl (the crop's geometry) too
+    goal_map: bool = False  # sl also reads the sub-task's target in the crop (needs layout)
     communication: str = "hangrcom"
     mu: float = MU
     delta: float = DELTA
@@ -71,19 +91,37 @@ def crop_layout(crop: np.ndarray) -> np.ndarray:
     return np.stack([crop[..., OBSTACLE], crop[..., EXPLORED], objects], -1).astype(np.uint8)
 
 
+def crop_goal(crop: np.ndarray) -> np.ndarray:
+    """(…, G, G, K + 2) 0/1 crop -> (…, G * G * (o + p) / 8) uint8: its pickupable-type and
+    receptacle-type channels, bit-packed (a few kB per row instead of 43 kB)."""
+    crop = np.asarray(crop, dtype=bool)
+    obj, rec = goal_channels()
+    picked = np.take(crop, np.concatenate([obj, rec]).clip(min=0), axis=-1)
+    picked[..., np.concatenate([obj, rec]) < 0] = False
+    return np.packbits(picked.reshape(*crop.shape[:-3], -1), axis=-1)
+
+
+def unpack_goal(packed: torch.Tensor, size: int, types: int) -> torch.Tensor:
+    """Inverse of :func:`crop_goal`'s packing: (…, bytes) uint8 -> (…, G, G, types) float."""
+    shifts = torch.arange(7, -1, -1, dtype=torch.uint8, device=packed.device)
+    bits = (packed[..., None] >> shifts) & 1
+    bits = bits.flatten(-2)[..., : size * size * types]
+    return bits.reshape(*packed.shape[:-1], size, size, types).float()
+
+
 class LayoutEncoder(nn.Module):
     """sl: a small CNN over the crop's geometry (20 x 20 x LAYOUT -> 64)."""
 
-    def __init__(self, out: int = 64) -> None:
+    def __init__(self, out: int = 64, channels: int = LAYOUT) -> None:
         super().__init__()
         self.net = nn.Sequential(
-            nn.Conv2d(LAYOUT, 16, 3, stride=2, padding=1), nn.ReLU(),
+            nn.Conv2d(channels, 16, 3, stride=2, padding=1), nn.ReLU(),
             nn.Conv2d(16, 32, 3, stride=2, padding=1), nn.ReLU(),
             nn.AdaptiveAvgPool2d(4), nn.Flatten(), nn.Linear(32 * 16, out), nn.ReLU(),
         )  # fmt: skip
 
     def forward(self, layout: torch.Tensor) -> torch.Tensor:
-        """(…, G, G, LAYOUT) 0/1 -> (…, out)."""
+        """(…, G, G, channels) in [0, 1] -> (…, out)."""
         lead = layout.shape[:-3]
         x = layout.reshape(-1, *layout.shape[-3:]).permute(0, 3, 1, 2).float()
         return self.net(x).reshape(*lead, -1)
@@ -134,7 +172,11 @@ class SubGoalPredictor(nn.Module):
     def __init__(self, cfg: DecisionConfig) -> None:
         super().__init__()
         self.pose = nn.Sequential(nn.Linear(POSE, 32), nn.ReLU())  # sp
-        self.layout = LayoutEncoder() if cfg.layout else None  # sl
+        if cfg.goal_map and not cfg.layout:
+            raise ValueError("DecisionConfig.goal_map needs layout: true (the goal is its channel)")
+        self.cfg = cfg
+        channels = LAYOUT + (1 if cfg.goal_map else 0)
+        self.layout = LayoutEncoder(channels=channels) if cfg.layout else None  # sl
         width = cfg.embed + 2 * cfg.perception + 32 + (64 if cfg.layout else 0)
         self.lstm = nn.LSTM(width, cfg.hidden, batch_first=True)
         self.hidden = nn.Sequential(nn.Linear(cfg.hidden, cfg.embed), nn.ReLU())
@@ -144,13 +186,28 @@ class SubGoalPredictor(nn.Module):
              "stop": nn.Linear(cfg.embed, 2)}
         )  # fmt: skip
 
-    def forward(self, se, x: dict[str, torch.Tensor], state=None):
+    def forward(self, se, x: dict[str, torch.Tensor], state=None, task=None):
         parts = [se, x["sm"], self.pose(encode_pose(x["pose"])), x["sv"]]
         if self.layout is not None:
-            parts.append(self.layout(x["layout"]))
+            layout = x["layout"].float()
+            if self.cfg.goal_map:
+                layout = torch.cat([layout, self.goal(x, task)[..., None]], dim=-1)
+            parts.append(self.layout(layout))
         h, state = self.lstm(torch.cat(parts, dim=-1), state)
         h = self.hidden(h)
         return {k: head(h) for k, head in self.heads.items()}, state
+
+    def goal(self, x: dict[str, torch.Tensor], task: dict[str, torch.Tensor]) -> torch.Tensor:
+        """(…, G, G) the sub-task's target in the crop: the object while the hands are empty,
+        the receptacle while holding (probabilities of F_a's heads over the crop's channels)."""
+        size = x["layout"].shape[-2]
+        maps = unpack_goal(x["goal"], size, self.cfg.objects + self.cfg.receptacles)
+        obj = torch.einsum("...hwk,...k->...hw", maps[..., : self.cfg.objects],
+                           task["object"].softmax(-1))  # fmt: skip
+        rec = torch.einsum("...hwk,...k->...hw", maps[..., self.cfg.objects :],
+                           task["receptacle"].softmax(-1))  # fmt: skip
+        holding = (x["held"] >= 0)[..., None, None]
+        return torch.where(holding, rec, obj)
 
 
 class AgentDecision(nn.Module):
@@ -167,7 +224,7 @@ class AgentDecision(nn.Module):
     def decide(self, sf, inn, inter, x, states=(None, None)):
         """F_a and F_g on (B, T, ·) inputs: logits of every head and the LSTM states."""
         se, task, s_task = self.subtask(torch.cat([sf, inn, inter], dim=-1), states[0])
-        goal, s_goal = self.subgoal(se, x, states[1])
+        goal, s_goal = self.subgoal(se, x, states[1], task)
         return {**task, **goal}, (s_task, s_goal)
 
 

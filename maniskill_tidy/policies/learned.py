@@ -24,7 +24,7 @@ import torch
 
 from maniskill_tidy.envs.actions import MIN_PIXELS, REACH, Action, AgentState, Targeted
 from maniskill_tidy.knowledge import ROOM_TYPES, load_catalog
-from maniskill_tidy.models.decision import crop_layout
+from maniskill_tidy.models.decision import crop_goal, crop_layout
 from maniskill_tidy.perception.frame_inputs import FrameInputs, FrameReader
 from maniskill_tidy.policies.base import (
     EXPLORE,
@@ -127,6 +127,8 @@ class LearnedAgent(Agent):
         )
         if self.decision.cfg.layout:
             x["layout"] = torch.from_numpy(crop_layout(f.crop))[None, None]
+        if self.decision.cfg.goal_map:
+            x["goal"] = torch.from_numpy(crop_goal(f.crop))[None, None]
         self.x = x
         with torch.no_grad():
             sf, state = self.decision.state(x, self.lstm[0])

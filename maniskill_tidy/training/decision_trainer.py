@@ -40,6 +40,7 @@ from maniskill_tidy.models.decision import (
     HEADS_TASK,
     DecisionConfig,
     TeamDecision,
+    crop_goal,
     crop_layout,
 )
 from maniskill_tidy.tasks.dataset import write_atomic
@@ -104,6 +105,8 @@ class AgentConfig:
             bad = sorted(set(getattr(cfg, section)) - names)
             if bad:
                 raise ValueError(f"{path}: unknown {section} keys {bad}; expected {sorted(names)}")
+        if cfg.model.get("goal_map") and not cfg.model.get("layout"):
+            raise ValueError(f"{path}: model goal_map needs layout: true (the goal is its channel)")
         for section in ("train_demos", "val_demos"):
             bad = sorted(set(getattr(cfg, section)) - {"starts", "tasks", "houses", "teacher"})
             if bad:
@@ -154,7 +157,7 @@ class Rows:
         return xs, present, ys
 
 
-FEATURES_VERSION = 2  # 2: rows carry the crop's layout (models/decision.crop_layout)
+FEATURES_VERSION = 3  # 2: the crop's layout (crop_layout); 3: its goal channels (crop_goal)
 
 
 def _feature_hash(demos_hash: str, perception: Path) -> str:
@@ -206,6 +209,8 @@ def embed_split(directory: Path, perception_dir: Path, cache: Path, progress: bo
                 parts.setdefault(name, []).append(f[name])
             layout = crop_layout(crop.reshape(-1, g, g, k + 2))
             parts.setdefault("layout", []).append(torch.from_numpy(layout))
+            goal = crop_goal(crop.reshape(-1, g, g, k + 2))
+            parts.setdefault("goal", []).append(torch.from_numpy(goal))
         parts.setdefault("pose", []).append(torch.from_numpy(d["pose"]))
         for name in ("failed", "capability", "held", *LABELS):
             parts.setdefault(name, []).append(torch.from_numpy(d[name].astype(np.int64)))
@@ -213,7 +218,7 @@ def embed_split(directory: Path, perception_dir: Path, cache: Path, progress: bo
             keys.append((episodes + int(e), int(t), int(a)))
         episodes += len(json.loads(str(d["episodes"])))
     cat = {name: torch.cat(v) for name, v in parts.items()}
-    x = {name: cat[name] for name in (*FEATURES, "mis", "det", "layout")}
+    x = {name: cat[name] for name in (*FEATURES, "mis", "det", "layout", "goal")}
     x["failed"] = cat["failed"].float()
     x["pose"] = cat["pose"].float()
     x["va"] = cat["capability"].float()
