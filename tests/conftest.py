@@ -27,9 +27,11 @@ def learned_config(tmp_path_factory) -> Path:
 
     root = tmp_path_factory.mktemp("learned")
     config = root / "hangrcom.yaml"
-    # layout and goal_map on: the agents also run F_g's crop encoder and the goal channel
+    # every option on: the agents also run F_g's crop encoder, the goal channel, the
+    # thresholded operation and the sampled sub-goal
     config.write_text(
         f"name: hangrcom\nout: {root / 'hangrcom'}\nmodel: {{layout: true, goal_map: true}}\n"
+        "act: {ope_threshold: 0.1, sample_subgoal: true}\n"
     )
     cfg = AgentConfig.load(config)
     for setting, agents in (("I", 3), ("II", 4)):

@@ -213,6 +213,28 @@ def test_goal_map_points_at_the_subtask_target_object_or_receptacle():
         SubGoalPredictor(replace(cfg, layout=False))
 
 
+def test_an_ope_threshold_lets_a_likely_operation_win_over_the_argmax():
+    from maniskill_tidy.policies.learned import decode
+
+    catalog = load_catalog()
+    logits = {"kind": torch.zeros(2), "object": torch.zeros(len(catalog.pickupable)),
+              "receptacle": torch.zeros(len(catalog.receptacles)), "room": torch.zeros(4),
+              "dx": torch.zeros(9), "dy": torch.zeros(9), "drot": torch.zeros(4),
+              "stop": torch.zeros(2),
+              "ope": torch.log(torch.tensor([0.8, 0.15, 0.04, 0.01]))}  # fmt: skip
+    assert decode(logits).subgoal.ope == "NoAction"  # the paper's argmax
+    assert decode(logits, 0.1).subgoal.ope == "PickUp"
+    assert decode(logits, 0.2).subgoal.ope == "NoAction"
+    assert decode(logits).subgoal.dx == -4  # argmax of equal logits: the first class
+    logits["dy"] = torch.tensor([-50.0] * 8 + [50.0])  # all the mass on dy = +4
+    rng = np.random.default_rng(0)
+    drawn = [decode(logits, rng=rng).subgoal for _ in range(200)]
+    assert {g.dy for g in drawn} == {4}
+    assert len({g.dx for g in drawn}) == 9  # drawn from the uniform head, seeded
+    again = [decode(logits, rng=np.random.default_rng(0)).subgoal.dx for _ in range(1)]
+    assert again[0] == drawn[0].dx
+
+
 def test_a_saved_model_loads_in_fp16_precision(tmp_path):
     torch.manual_seed(1)
     model = TeamDecision(_cfg(), 3)
@@ -235,6 +257,12 @@ def test_agent_config_errors_name_what_is_wrong(tmp_path, capsys):
     bad.write_text("name: x\nout: y\ntrain: {select: f1}\n")
     with pytest.raises(ValueError, match="train select 'f1'"):
         AgentConfig.load(bad).settings()
+    bad.write_text("name: x\nout: y\nact: {ope_threshold: 2}\n")
+    with pytest.raises(ValueError, match="act ope_threshold 2: expected a probability"):
+        AgentConfig.load(bad)
+    bad.write_text("name: x\nout: y\nmodel: {goal_map: true}\n")
+    with pytest.raises(ValueError, match="goal_map needs layout"):
+        AgentConfig.load(bad)
     bad.write_text("out: y\n")
     with pytest.raises(ValueError, match="missing 'name'"):
         AgentConfig.load(bad)

@@ -46,6 +46,8 @@ from maniskill_tidy.tasks.teams import SETTINGS
 
 REPO = Path(__file__).resolve().parents[2]
 COMMIT_STEPS = 4  # env steps a sub-goal is pursued before a new prediction replaces it
+MISPLACED = 0.5  # the detector's probability above which an object in reach is picked up
+TOP_PUT = 3  # receptacle types (F_a's likeliest) an object may be put down on
 DEFAULT_CONFIG = Path("agents/hangrcom.yaml")
 
 
@@ -61,10 +63,25 @@ class Decision:
     subgoal: SubGoal
 
 
-def decode(logits: dict[str, torch.Tensor]) -> Decision:
-    """The argmax of every head, as the paper's sub-task and sub-goal."""
+def decode(
+    logits: dict[str, torch.Tensor],
+    ope_threshold: float | None = None,
+    rng: np.random.Generator | None = None,
+) -> Decision:
+    """The argmax of every head, as the paper's sub-task and sub-goal; with ``ope_threshold``
+    the likeliest operation wherever its probability exceeds the threshold; with ``rng``
+    dx, dy and drot drawn from their heads."""
     catalog = load_catalog()
     best = {k: int(v.reshape(-1, v.shape[-1])[-1].argmax()) for k, v in logits.items()}
+    if rng is not None:
+        for head in ("dx", "dy", "drot"):
+            p = logits[head].reshape(-1, logits[head].shape[-1])[-1].double().softmax(-1)
+            best[head] = int(rng.choice(len(p), p=(p / p.sum()).numpy()))
+    if ope_threshold is not None:
+        p = logits["ope"].reshape(-1, len(OPERATIONS))[-1].softmax(-1)
+        op = int(p[1:].argmax()) + 1
+        if float(p[op]) > ope_threshold:
+            best["ope"] = op
     kind = PLACE if best["kind"] == 1 else EXPLORE
     subtask = SubTask(
         kind, catalog.pickupable[best["object"]], catalog.receptacles[best["receptacle"]],
@@ -97,6 +114,12 @@ class LearnedAgent(Agent):
         self._trace: dict = {}
         self._last_op: Action | None = None
         self.commit: tuple | None = None  # (cell, rotation, ope, stop, subtask, since step)
+        acting = team.config.acting()
+        self.ope_threshold = acting.ope_threshold
+        self.picked_from = -1  # receptacle type the held object was picked up from
+        self.sampler = (
+            np.random.default_rng([public.seed, self.i, 13]) if acting.sample_subgoal else None
+        )
 
     # ------------------------------------------------------------------ perception
     def observe(self, view: AgentView) -> None:
@@ -148,7 +171,9 @@ class LearnedAgent(Agent):
                 self.sf, inn[None, None], inter[None, None], self.x, self.lstm[1:]
             )
         self.lstm = (self.lstm[0], *states)
-        d = decode(logits)
+        d = decode(logits, self.ope_threshold, self.sampler)
+        self.p_receptacle = logits["receptacle"].reshape(-1, logits["receptacle"].shape[-1])[-1]
+        self.p_receptacle = self.p_receptacle.softmax(-1).numpy()
         self._label = (d.subtask, d.subgoal)
         ex = self.exchange
         self._trace = {"T": ex.T, "groups": ex.groups(), "links": ex.links()}
@@ -158,8 +183,14 @@ class LearnedAgent(Agent):
 
     def _act(self, d: Decision) -> Action | Targeted:
         """Pursue the committed sub-goal (a new prediction is adopted once it is reached, or
-        after COMMIT_STEPS steps): re-adopting every step makes agents dither."""
+        after COMMIT_STEPS steps): re-adopting every step makes agents dither. With an
+        ``ope_threshold`` a predicted operation that is possible now is done at once."""
         s = self.state
+        if self.ope_threshold is not None:
+            op = self._operation(d.subgoal.ope, d.subtask)
+            if op is not None:
+                self.commit = None
+                return op
         if self.commit is None or self.t - self.commit[-1] >= COMMIT_STEPS:
             g = d.subgoal
             cell = goal_cell(s, g)
@@ -170,50 +201,63 @@ class LearnedAgent(Agent):
         if move is not None:
             return move
         self.commit = None  # reached: the next step adopts a new prediction
-        # an operation that just failed here: look elsewhere before trying it again
-        retry = self.failed and self._last_op in (Action.PickUp, Action.PutDown)
-        if self.capability[1] and ope != "NoAction" and not retry:
-            op = None
-            if ope == "PickUp" and s.held is None:
-                op = self._pick(subtask)
-            elif ope == "PutDown" and s.held is not None:
-                op = self._put(subtask)
-            elif ope == "Drop" and s.held is not None:
-                op = Action.Drop
-            if op is not None:
-                return op
+        op = self._operation(ope, subtask)
+        if op is not None:
+            return op
         if stop:
             return Action.Stop
         return self.executor.look(s)
 
+    def _operation(self, ope: str, subtask: SubTask) -> Action | Targeted | None:
+        """``ope`` on what is in view, or None when it cannot succeed from here."""
+        # an operation that just failed here: look elsewhere before trying it again
+        retry = self.failed and self._last_op in (Action.PickUp, Action.PutDown)
+        if not self.capability[1] or retry:
+            return None
+        held = self.state.held is not None
+        if ope == "PickUp" and not held:
+            return self._pick(subtask)
+        if ope == "PutDown" and held:
+            return self._put(subtask)
+        if ope == "Drop" and held:
+            return Action.Drop
+        return None
+
     def _pick(self, subtask: SubTask) -> Targeted | None:
-        """The detected object in reach of the predicted type (else the likeliest misplaced)."""
+        """The detected object in reach of the predicted type (else the likeliest misplaced),
+        if the misplaced-object detector finds it misplaced (p >= MISPLACED)."""
         f: FrameInputs = self.frame
         here = np.asarray(self.public.house.navgrid.center(*self.state.cell))
         near = [i for i in range(len(f.det_object))
-                if np.hypot(*(f.det_position[i, :2] - here)) <= REACH]  # fmt: skip
+                if np.hypot(*(f.det_position[i, :2] - here)) <= REACH
+                and self.p_detections[i] >= MISPLACED]  # fmt: skip
         if not near:
-            return None  # nothing to pick up in reach: not worth a failed action
+            return None  # nothing misplaced in reach: not worth a failed action
         kind = load_catalog().categories
         same = [i for i in near if kind[f.det_type[i]] == subtask.object_type]
         best = max(same or near, key=lambda i: self.p_detections[i])
+        self.picked_from = int(f.det_rest[best])
         return Targeted(Action.PickUp, f.det_object[best])
 
-    def _put(self, subtask: SubTask) -> Action | Targeted | None:
-        """A visible surface of the predicted receptacle type, else the env's choice among the
-        visible furniture, or None when no furniture is in view."""
+    def _put(self, subtask: SubTask) -> Targeted | None:
+        """The visible surface whose receptacle type F_a finds likeliest, among its TOP_PUT
+        likeliest types and not the type the object was picked up from; None if none is in
+        view (the object is carried on)."""
+        order = np.argsort(-self.p_receptacle)
+        likely = [int(r) for r in order[:TOP_PUT] if int(r) != self.picked_from]
+        rank = {load_catalog().receptacles[r]: k for k, r in enumerate(likely)}
         ids, counts = np.unique(self.seg, return_counts=True)
-        furniture = False
-        for sid, n in sorted(zip(ids, counts, strict=True), key=lambda p: -p[1]):
+        best: tuple[int, str] | None = None
+        for sid, n in zip(ids, counts, strict=True):
             inst = self.public.instances.get(int(sid))
             if inst is None or inst.kind != "furniture" or n < MIN_PIXELS:
                 continue
             f = self.furniture.get(inst.id.split("/")[0])
-            furniture = True
             for surface in f.surfaces if f is not None else []:
-                if surface.receptacle_type == subtask.receptacle_type:
-                    return Targeted(Action.PutDown, f"{f.id}/{surface.name}")
-        return Action.PutDown if furniture else None
+                k = rank.get(surface.receptacle_type)
+                if k is not None and (best is None or k < best[0]):
+                    best = (k, f"{f.id}/{surface.name}")
+        return Targeted(Action.PutDown, best[1]) if best is not None else None
 
     def label(self) -> Label | None:
         return self._label

@@ -68,6 +68,21 @@ class TrainSettings:
 
 
 @dataclass(frozen=True)
+class ActSettings:
+    """How the learned team turns the heads into actions (``policies/learned.py``)."""
+
+    # None: the argmax of ope (the paper's decoding). A probability p: operate whenever an
+    # operation's probability exceeds p and the operation is possible now. PickUp is one step
+    # per pick in the demonstrations, so its probability rarely wins the argmax even where
+    # the model ranks those steps well (measured on val: README, "Where it stands").
+    ope_threshold: float | None = None
+    # Sample the sub-goal's dx, dy and drot from their heads (seeded per agent) instead of the
+    # argmax: the teacher's moves are spread over many cells, and the argmax of each axis
+    # alone names one fixed cell that an agent walks to, or stays at, step after step.
+    sample_subgoal: bool = False
+
+
+@dataclass(frozen=True)
 class AgentConfig:
     """An agent config file (``agents/*.yaml``), checked on load."""
 
@@ -82,6 +97,7 @@ class AgentConfig:
     val_demos: dict = field(default_factory=lambda: {"starts": 1, "tasks": 2})
     model: dict = field(default_factory=dict)
     train: dict = field(default_factory=dict)
+    act: dict = field(default_factory=dict)
     notes: str = ""  # printed in the model card (e.g. why this many demonstrations)
 
     @classmethod
@@ -100,11 +116,14 @@ class AgentConfig:
             if key not in raw:
                 raise ValueError(f"{path}: missing {key!r}")
         cfg = cls(**raw)
-        for section, klass in (("model", DecisionConfig), ("train", TrainSettings)):
+        for section, klass in (
+            ("model", DecisionConfig), ("train", TrainSettings), ("act", ActSettings),
+        ):  # fmt: skip
             names = {f.name for f in fields(klass)}
             bad = sorted(set(getattr(cfg, section)) - names)
             if bad:
                 raise ValueError(f"{path}: unknown {section} keys {bad}; expected {sorted(names)}")
+        cfg.acting()  # checks the act section's values
         if cfg.model.get("goal_map") and not cfg.model.get("layout"):
             raise ValueError(f"{path}: model goal_map needs layout: true (the goal is its channel)")
         for section in ("train_demos", "val_demos"):
@@ -119,6 +138,12 @@ class AgentConfig:
             categories=len(catalog.categories), objects=len(catalog.pickupable),
             receptacles=len(catalog.receptacles), rooms=len(ROOM_TYPES), **self.model,
         )  # fmt: skip
+
+    def acting(self) -> ActSettings:
+        a = ActSettings(**self.act)
+        if a.ope_threshold is not None and not 0 < a.ope_threshold < 1:
+            raise ValueError(f"act ope_threshold {a.ope_threshold!r}: expected a probability")
+        return a
 
     def settings(self) -> TrainSettings:
         s = TrainSettings(**self.train)
