@@ -467,6 +467,7 @@ def train_decision(config: Path, setting: str, progress: bool = True) -> dict:
         "val_training_mode": evaluate(model, val, hard=False),
         "code_version": code_version(),
         "notes": cfg.notes.strip(),
+        "act": asdict(cfg.acting()),
     }
     folder = Path(cfg.out) / f"setting_{setting}"
     save_model(model, folder, {"name": cfg.name, "perception": str(perception)})
@@ -518,6 +519,11 @@ def model_card(card: dict) -> str:
         )
     if card.get("notes"):
         lines.append(f"- {card['notes']}")
+    if "act" in card:
+        act = ", ".join(f"{k} {v}" for k, v in card["act"].items())
+        lines.append(
+            f"- acting (the config's `act:` section when trained; `policies/learned.py`): {act}"
+        )
     lines += [
         "",
         "Validation accuracy of every head (rows with a label), inference-mode HanGrCom "
