@@ -261,6 +261,12 @@ def embed_split(directory: Path, perception_dir: Path, cache: Path, progress: bo
     return Rows(x, y, index, key)
 
 
+def used_input(name: str, cfg: DecisionConfig) -> bool:
+    """Whether a model with ``cfg`` reads the cached input ``name`` (the goal channels are
+    340 MB per 63k rows)."""
+    return {"layout": cfg.layout, "goal": cfg.goal_map}.get(name, True)
+
+
 # ------------------------------------------------------------------- loss and metrics
 def bc_loss(out: list[dict], ys: list[dict]) -> torch.Tensor:
     """Eq. 2 summed over the agents: Loss_subtask + Loss_subgoal, every weight 1."""
@@ -429,8 +435,11 @@ def train_decision(config: Path, setting: str, progress: bool = True) -> dict:
     perception = Path(cfg.perception)
     train = embed_split(demos_folder(cfg, setting, "train"), perception, work, progress)
     val = embed_split(demos_folder(cfg, setting, "val"), perception, work, progress)
+    decision = cfg.decision()
+    for rows in (train, val):  # the cache holds every model's inputs; keep what this one reads
+        rows.x = {k: v for k, v in rows.x.items() if used_input(k, decision)}
     _seeded(settings.seed)
-    model = TeamDecision(cfg.decision(), train.index.shape[-1])
+    model = TeamDecision(decision, train.index.shape[-1])
     state = fit(model, train, val, settings, work / f"{cfg.name}.ckpt", progress)
     card = {
         "name": cfg.name,
