@@ -235,6 +235,17 @@ def test_an_ope_threshold_lets_a_likely_operation_win_over_the_argmax():
     assert again[0] == drawn[0].dx
 
 
+def test_auc_is_the_chance_a_positive_outranks_a_negative():
+    from maniskill_tidy.training.decision_trainer import auc
+
+    positive = torch.tensor([True, False, True, False])
+    assert auc(torch.tensor([0.9, 0.1, 0.8, 0.2]), positive) == 1.0
+    assert auc(torch.tensor([0.1, 0.9, 0.2, 0.8]), positive) == 0.0
+    assert auc(torch.tensor([0.9, 0.5, 0.3, 0.1]), positive) == 0.75
+    assert auc(torch.tensor([0.5, 0.5, 0.5, 0.5]), positive) == 0.5
+    assert auc(torch.tensor([0.5, 0.2]), torch.tensor([False, False])) is None
+
+
 def test_a_saved_model_loads_in_fp16_precision(tmp_path):
     torch.manual_seed(1)
     model = TeamDecision(_cfg(), 3)

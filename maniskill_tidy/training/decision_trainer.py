@@ -32,6 +32,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 import yaml
+from scipy.stats import rankdata
 from tqdm import tqdm
 
 from maniskill_tidy.knowledge import ROOM_TYPES, load_catalog
@@ -43,6 +44,7 @@ from maniskill_tidy.models.decision import (
     crop_goal,
     crop_layout,
 )
+from maniskill_tidy.policies.base import OPERATIONS
 from maniskill_tidy.tasks.dataset import write_atomic
 from maniskill_tidy.tasks.teams import SETTINGS
 from maniskill_tidy.training.decision_data import DemoConfig, build_demo_features
@@ -283,11 +285,14 @@ def bc_loss(out: list[dict], ys: list[dict]) -> torch.Tensor:
 
 @torch.no_grad()
 def evaluate(model: TeamDecision, rows: Rows, hard: bool, batch: int = 16) -> dict:
-    """Mean loss per episode batch and each head's accuracy over the labelled rows."""
+    """Mean loss per episode batch, each head's accuracy over the labelled rows, and how well
+    each operation's probability ranks the steps labelled with it (``ope_auc``: the act
+    section's ``ope_threshold`` relies on that ranking, not on the argmax)."""
     model.eval()
     correct = {h: 0 for h in LABELS}
     count = {h: 0 for h in LABELS}
     losses = []
+    ope_p, ope_y = [], []
     for start in range(0, rows.episodes, batch):
         xs, present, ys = rows.batch(np.arange(start, min(start + batch, rows.episodes)))
         out, _ = model(xs, present, hard=hard)
@@ -297,12 +302,26 @@ def evaluate(model: TeamDecision, rows: Rows, hard: bool, batch: int = 16) -> di
                 ok = y[head] >= 0
                 correct[head] += int((logits[head].argmax(-1)[ok] == y[head][ok]).sum())
                 count[head] += int(ok.sum())
+            ok = y["ope"] >= 0
+            ope_p.append(logits["ope"].softmax(-1)[ok])
+            ope_y.append(y["ope"][ok])
+    p, y = torch.cat(ope_p), torch.cat(ope_y)
     return {
+        "ope_auc": {op: auc(p[:, i], y == i) for i, op in enumerate(OPERATIONS) if i},
         "loss": float(np.mean(losses)),
         "accuracy": {h: correct[h] / count[h] if count[h] else None for h in LABELS},
         "majority": majority(rows),
         "labelled": count,
     }
+
+
+def auc(score: torch.Tensor, positive: torch.Tensor) -> float | None:
+    """Area under the ROC curve: the chance a positive scores above a negative (ties half)."""
+    n_pos, n_neg = int(positive.sum()), int((~positive).sum())
+    if not n_pos or not n_neg:
+        return None
+    ranks = torch.from_numpy(rankdata(score.numpy()))
+    return float((ranks[positive].sum() - n_pos * (n_pos + 1) / 2) / (n_pos * n_neg))
 
 
 def majority(rows: Rows) -> dict[str, float | None]:
@@ -548,8 +567,14 @@ def model_card(card: dict) -> str:
     lines += [
         "",
         f"Validation loss: {hard['loss']:.3f} (inference), {soft['loss']:.3f} (soft).",
-        "",
     ]
+    if "ope_auc" in hard:
+        ranked = ", ".join(f"{op} {_fmt(v)}" for op, v in hard["ope_auc"].items())
+        lines.append(
+            f"How well each operation's probability ranks the steps labelled with it (ROC AUC, "
+            f"inference mode; 0.5 is chance): {ranked}."
+        )
+    lines.append("")
     return "\n".join(lines)
 
 
