@@ -16,7 +16,14 @@ import pytest
 from maniskill_tidy.eval.leaderboard import paper_reference, write_leaderboard
 from maniskill_tidy.eval.metrics import EpisodeRecord, ces, summarize
 from maniskill_tidy.eval.paper_tables import extract
-from maniskill_tidy.eval.runner import RunConfig, evaluate, read_records, select
+from maniskill_tidy.eval.runner import (
+    RunConfig,
+    evaluate,
+    exclusive,
+    read_records,
+    run_dir,
+    select,
+)
 from maniskill_tidy.policies.channel import CENTRAL, Channel
 
 REFERENCE = Path(__file__).resolve().parents[2] / "shared" / "reference"
@@ -173,6 +180,18 @@ def test_one_and_two_workers_give_identical_episode_records(expert_runs, tmp_pat
         evaluate(cfg, tmp_path / f"r{w}", workers=w, progress=False)
     tail = "eval/results/setting_II/random/episodes.jsonl"
     assert _records(tmp_path / "r1" / tail) == _records(tmp_path / "r2" / tail)
+
+
+def test_a_second_run_on_the_same_results_folder_is_refused(tmp_path):
+    """Two runs appending to one episodes.jsonl would play and count episodes twice."""
+    cfg = RunConfig("random", "I", "test", None, 2)
+    directory = run_dir(tmp_path, cfg)
+    directory.mkdir(parents=True)
+    with exclusive(directory):
+        with pytest.raises(ValueError, match="being written by another eval run"):
+            evaluate(cfg, tmp_path, progress=False)
+    assert not (directory / "episodes.jsonl").exists()
+    assert evaluate(cfg, tmp_path, progress=False)["episodes"] == 2  # free once it ends
 
 
 def test_the_expert_solves_most_standard_test_episodes(expert_runs):

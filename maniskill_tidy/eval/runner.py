@@ -15,11 +15,13 @@ first start of every meta-task of the split (200 episodes on the 120-house test 
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
 import subprocess
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from contextlib import contextmanager
 from dataclasses import dataclass
 from multiprocessing import get_context
 from pathlib import Path
@@ -209,6 +211,25 @@ def read_records(path: Path) -> list[EpisodeRecord]:
     return records
 
 
+@contextmanager
+def exclusive(directory: Path):
+    """Hold ``directory/.lock`` for the run; a second run on the same folder is refused."""
+    with open(directory / ".lock", "w") as lock:
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise ValueError(
+                f"{directory} is being written by another eval run; wait for it to end or "
+                "pass another --out"
+            ) from None
+        lock.write(f"{os.getpid()}\n")
+        lock.flush()
+        try:
+            yield
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
+
+
 def evaluate(
     cfg: RunConfig,
     out: Path = Path("."),
@@ -234,110 +255,111 @@ def evaluate(
 
     directory = run_dir(out, cfg)
     directory.mkdir(parents=True, exist_ok=True)
-    config = {
-        **cfg.__dict__,
-        "dataset_hash": episodes.dataset_hash,
-        "episode_count": len(chosen),
-    }
-    config_path = directory / "run.json"
-    version = code_version()  # of the code that runs the episodes, taken before they run
-    versions = [version]
-    if config_path.exists():
-        before = json.loads(config_path.read_text())
-        informative = ("dataset", "code_versions")  # a moved dataset with the same hash is fine
-        diff = {
-            k: (before.get(k), v)
-            for k, v in config.items()
-            if k not in informative and before.get(k) != v
+    with exclusive(directory):  # one run per results folder: two would both append
+        config = {
+            **cfg.__dict__,
+            "dataset_hash": episodes.dataset_hash,
+            "episode_count": len(chosen),
         }
-        if diff:
-            raise ValueError(
-                f"{directory} holds a run with other arguments {diff} (before, now); "
-                "pass another --out or delete that directory"
-            )
-        versions = before.get("code_versions", []) or [version]
-    wall = (
-        json.loads(config_path.read_text()).get("wall_seconds", 0.0)
-        if config_path.exists()
-        else 0.0
-    )
-    run_info = {**config, "code_versions": versions, "wall_seconds": wall}
-    write_atomic(config_path, json.dumps(run_info, indent=1, sort_keys=True).encode())
-
-    jsonl = directory / "episodes.jsonl"
-    records = [r for r in read_records(jsonl) if r.episode in ids]
-    done = {r.episode for r in records}
-    todo = [i for i in chosen if episodes.get(i).id not in done]
-    images = images or record == "all"  # else the team's own observations
-    started = time.perf_counter()
-    bar = tqdm(
-        total=len(chosen),
-        initial=len(done),
-        desc=f"{cfg.policy} setting {cfg.setting} {cfg.split}",
-        unit="ep",
-        disable=not progress,
-    )
-    with open(jsonl, "a") as sink:
-
-        def keep(r: EpisodeRecord) -> None:
-            sink.write(json.dumps(r.to_dict(), sort_keys=True) + "\n")
-            sink.flush()
-            os.fsync(sink.fileno())
-            records.append(r)
-            bar.update(1)
-            bar.set_postfix(success=f"{np.mean([x.success for x in records]):.3f}")
-
-        if todo and workers <= 1:
-            _init_worker(cfg, images, record, str(out))
-            for i in todo:
-                keep(_work(i))
-            _worker["env"].close()
-            _worker.clear()
-        elif todo:
-            ctx = get_context("spawn")
-            with ProcessPoolExecutor(
-                workers,
-                mp_context=ctx,
-                initializer=_init_pool_worker,
-                initargs=(cfg, images, record, str(out)),
-            ) as pool:
-                futures = [pool.submit(_work, i) for i in todo]
-                for fut in as_completed(futures):
-                    keep(fut.result())
-    bar.close()
-    elapsed = time.perf_counter() - started
-    if todo:  # wall time and code versions accumulate over the sessions that ran episodes
-        run_info["wall_seconds"] = round(run_info["wall_seconds"] + elapsed, 1)
-        versions = list(dict.fromkeys([*versions, version]))
-        run_info["code_versions"] = versions
+        config_path = directory / "run.json"
+        version = code_version()  # of the code that runs the episodes, taken before they run
+        versions = [version]
+        if config_path.exists():
+            before = json.loads(config_path.read_text())
+            informative = ("dataset", "code_versions")  # a moved dataset with the same hash is fine
+            diff = {
+                k: (before.get(k), v)
+                for k, v in config.items()
+                if k not in informative and before.get(k) != v
+            }
+            if diff:
+                raise ValueError(
+                    f"{directory} holds a run with other arguments {diff} (before, now); "
+                    "pass another --out or delete that directory"
+                )
+            versions = before.get("code_versions", []) or [version]
+        wall = (
+            json.loads(config_path.read_text()).get("wall_seconds", 0.0)
+            if config_path.exists()
+            else 0.0
+        )
+        run_info = {**config, "code_versions": versions, "wall_seconds": wall}
         write_atomic(config_path, json.dumps(run_info, indent=1, sort_keys=True).encode())
-    if record == "failures":
-        _record_failures(cfg, records, ids, out)
 
-    summary = {
-        "policy": team_cls.name,
-        "protocol": cfg.episodes
-        if isinstance(cfg.episodes, str)
-        else f"{cfg.episodes} evenly spread episodes",
-        "setting": cfg.setting,
-        "split": cfg.split,
-        "team": [list(c) for c in members],
-        "communication": getattr(team_cls, "communication", "none"),
-        "privileged": team_cls.privileged,
-        "perception": getattr(team_cls, "perception", ""),
-        "dataset": cfg.dataset or "default (shipped with the package)",
-        "dataset_hash": episodes.dataset_hash,
-        "code_version": versions[-1],
-        "code_versions": versions,  # every version that ran part of this run (resumed runs)
-        "mixed_code_versions": len(versions) > 1,
-        "seed": cfg.seed,
-        "episodes": len(records),
-        "metrics": summarize(records),
-        "wall_seconds": run_info["wall_seconds"],  # summed over sessions that ran episodes
-        "workers": workers,
-        "obs_mode": cfg.env_kwargs(images)["obs_mode"],
-        "episode_seconds_mean": round(float(np.mean([r.seconds for r in records])), 3),
-        "central_endpoint": CENTRAL if getattr(team_cls, "central", False) else None,
-    }
-    write_atomic(directory / "summary.json", json.dumps(summary, indent=1).encode())
-    return summary
+        jsonl = directory / "episodes.jsonl"
+        records = [r for r in read_records(jsonl) if r.episode in ids]
+        done = {r.episode for r in records}
+        todo = [i for i in chosen if episodes.get(i).id not in done]
+        images = images or record == "all"  # else the team's own observations
+        started = time.perf_counter()
+        bar = tqdm(
+            total=len(chosen),
+            initial=len(done),
+            desc=f"{cfg.policy} setting {cfg.setting} {cfg.split}",
+            unit="ep",
+            disable=not progress,
+        )
+        with open(jsonl, "a") as sink:
+
+            def keep(r: EpisodeRecord) -> None:
+                sink.write(json.dumps(r.to_dict(), sort_keys=True) + "\n")
+                sink.flush()
+                os.fsync(sink.fileno())
+                records.append(r)
+                bar.update(1)
+                bar.set_postfix(success=f"{np.mean([x.success for x in records]):.3f}")
+
+            if todo and workers <= 1:
+                _init_worker(cfg, images, record, str(out))
+                for i in todo:
+                    keep(_work(i))
+                _worker["env"].close()
+                _worker.clear()
+            elif todo:
+                ctx = get_context("spawn")
+                with ProcessPoolExecutor(
+                    workers,
+                    mp_context=ctx,
+                    initializer=_init_pool_worker,
+                    initargs=(cfg, images, record, str(out)),
+                ) as pool:
+                    futures = [pool.submit(_work, i) for i in todo]
+                    for fut in as_completed(futures):
+                        keep(fut.result())
+        bar.close()
+        elapsed = time.perf_counter() - started
+        if todo:  # wall time and code versions accumulate over the sessions that ran episodes
+            run_info["wall_seconds"] = round(run_info["wall_seconds"] + elapsed, 1)
+            versions = list(dict.fromkeys([*versions, version]))
+            run_info["code_versions"] = versions
+            write_atomic(config_path, json.dumps(run_info, indent=1, sort_keys=True).encode())
+        if record == "failures":
+            _record_failures(cfg, records, ids, out)
+
+        summary = {
+            "policy": team_cls.name,
+            "protocol": cfg.episodes
+            if isinstance(cfg.episodes, str)
+            else f"{cfg.episodes} evenly spread episodes",
+            "setting": cfg.setting,
+            "split": cfg.split,
+            "team": [list(c) for c in members],
+            "communication": getattr(team_cls, "communication", "none"),
+            "privileged": team_cls.privileged,
+            "perception": getattr(team_cls, "perception", ""),
+            "dataset": cfg.dataset or "default (shipped with the package)",
+            "dataset_hash": episodes.dataset_hash,
+            "code_version": versions[-1],
+            "code_versions": versions,  # every version that ran part of this run (resumed runs)
+            "mixed_code_versions": len(versions) > 1,
+            "seed": cfg.seed,
+            "episodes": len(records),
+            "metrics": summarize(records),
+            "wall_seconds": run_info["wall_seconds"],  # summed over sessions that ran episodes
+            "workers": workers,
+            "obs_mode": cfg.env_kwargs(images)["obs_mode"],
+            "episode_seconds_mean": round(float(np.mean([r.seconds for r in records])), 3),
+            "central_endpoint": CENTRAL if getattr(team_cls, "central", False) else None,
+        }
+        write_atomic(directory / "summary.json", json.dumps(summary, indent=1).encode())
+        return summary
