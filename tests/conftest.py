@@ -16,29 +16,35 @@ def small_dataset(tmp_path_factory) -> Path:
     return out
 
 
-@pytest.fixture(scope="session")
-def learned_config(tmp_path_factory) -> Path:
-    """An agent config whose decision models (Settings I and II) are freshly initialised from
-    a seed: it tests the learned team's mechanics (perception, HanGrCom's messages, executor),
-    not what training taught it."""
+def _seeded_config(root: Path, name: str, model: str, settings=(("I", 3), ("II", 4))) -> Path:
+    """An agent config whose decision models are freshly initialised from a seed: for the
+    learned team's mechanics (perception, messages, executor), not what training taught it."""
     import torch
 
+    from maniskill_tidy.models.decision import TeamDecision
     from maniskill_tidy.training.decision_trainer import AgentConfig, save_model
 
-    root = tmp_path_factory.mktemp("learned")
-    config = root / "hangrcom.yaml"
-    # every option on: the agents also run F_g's crop encoder, the goal channel, the
-    # thresholded operation and the sampled sub-goal
+    config = root / f"{name}.yaml"
     config.write_text(
-        f"name: hangrcom\nout: {root / 'hangrcom'}\nmodel: {{layout: true, goal_map: true}}\n"
+        f"name: {name}\nout: {root / name}\nmodel: {model}\n"
         "act: {ope_threshold: 0.1, sample_subgoal: true}\n"
     )
     cfg = AgentConfig.load(config)
-    for setting, agents in (("I", 3), ("II", 4)):
-        from maniskill_tidy.models.decision import TeamDecision
-
+    for setting, agents in settings:
         torch.manual_seed(0)
-        save_model(
-            TeamDecision(cfg.decision(), agents), root / "hangrcom" / f"setting_{setting}", {}
-        )
+        save_model(TeamDecision(cfg.decision(), agents), root / name / f"setting_{setting}", {})
     return config
+
+
+@pytest.fixture(scope="session")
+def learned_config(tmp_path_factory) -> Path:
+    """The paper's model with every option on: the agents also run F_g's crop encoder, the goal
+    channel, the thresholded operation and the sampled sub-goal."""
+    root = tmp_path_factory.mktemp("learned")
+    return _seeded_config(root, "hangrcom", "{layout: true, goal_map: true}")
+
+
+@pytest.fixture(scope="session")
+def seeded_config():
+    """``seeded_config(root, name, model_yaml, settings)``: see :func:`_seeded_config`."""
+    return _seeded_config

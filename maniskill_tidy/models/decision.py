@@ -35,6 +35,14 @@ import torch
 from torch import nn
 
 from maniskill_tidy.knowledge import load_catalog
+from maniskill_tidy.models import hangrcom
+from maniskill_tidy.models.communication import (
+    SCHEMES,
+    CentralPlanner,
+    Messenger,
+    auxiliary_loss,
+    exchange,
+)
 from maniskill_tidy.models.hangrcom import DELTA, MU, HanGrCom
 from maniskill_tidy.perception.semantic_map import EXPLORED, FIRST_CHANNEL, OBSTACLE
 
@@ -69,7 +77,7 @@ class DecisionConfig:
     embed: int = 256  # se and F_g's last hidden layer (Table 2)
     layout: bool = False  # F_g reads sl (the crop's geometry) too
     goal_map: bool = False  # sl also reads the sub-task's target in the crop (needs layout)
-    communication: str = "hangrcom"
+    communication: str = "hangrcom"  # or a baseline of models/communication.py
     mu: float = MU
     delta: float = DELTA
 
@@ -211,13 +219,22 @@ class SubGoalPredictor(nn.Module):
 
 
 class AgentDecision(nn.Module):
-    """One agent's F_s, HanGrCom generators, F_a and F_g."""
+    """One agent's F_s, communication (HanGrCom's generators or a baseline's messenger), F_a
+    and F_g."""
 
     def __init__(self, cfg: DecisionConfig) -> None:
         super().__init__()
+        if cfg.communication not in SCHEMES:
+            raise ValueError(
+                f"unknown communication {cfg.communication!r}; expected one of {list(SCHEMES)}"
+            )
         self.cfg = cfg
         self.state = StateExtractor(cfg)
-        self.comm = HanGrCom(cfg.state, cfg.key, cfg.value, cfg.inter)
+        self.comm: nn.Module | None = None
+        if cfg.communication == "hangrcom":
+            self.comm = HanGrCom(cfg.state, cfg.key, cfg.value, cfg.inter)
+        elif cfg.communication != "none":
+            self.comm = Messenger(cfg)
         self.subtask = SubTaskPredictor(cfg, cfg.state + cfg.value + cfg.inter)
         self.subgoal = SubGoalPredictor(cfg)
 
@@ -229,30 +246,52 @@ class AgentDecision(nn.Module):
 
 
 class TeamDecision(nn.Module):
-    """The agents of one team, for training on whole episodes (soft or hard HanGrCom)."""
+    """The agents of one team (and CentralComm's node), for training on whole episodes."""
 
     def __init__(self, cfg: DecisionConfig, agents: int) -> None:
         super().__init__()
         self.cfg = cfg
         self.agents = nn.ModuleList(AgentDecision(cfg) for _ in range(agents))
+        self.central = CentralPlanner(cfg) if cfg.communication == "central" else None
 
-    def forward(self, x: list[dict[str, torch.Tensor]], present: torch.Tensor, hard: bool = False):
+    def forward(
+        self, x: list[dict[str, torch.Tensor]], present: torch.Tensor, hard: bool = False,
+        labels: list[dict[str, torch.Tensor]] | None = None,
+    ) -> tuple[list[dict[str, torch.Tensor]], dict]:  # fmt: skip
         """``x[n]``: agent n's inputs (B, T, ·); ``present`` (B, T, N). Returns per agent the
-        logits of every head (B, T, ·) and T (B, T, N, N)."""
-        from maniskill_tidy.models.hangrcom import attention, soft
-        from maniskill_tidy.models.hangrcom import hard as hard_mode
-
+        logits of every head (B, T, ·), and ``T`` (B, T, N, N; HanGrCom only) with ``aux``,
+        the scheme's auxiliary loss (its labels from ``labels``). ``hard``: HanGrCom's
+        inference mode (thresholded handshake) instead of the soft one."""
         sf = [agent.state(xn)[0] for agent, xn in zip(self.agents, x, strict=True)]
-        gens = [agent.comm(s) for agent, s in zip(self.agents, sf, strict=True)]
-        stack = {k: torch.stack([g[k] for g in gens], dim=2) for k in gens[0]}
-        t = attention(stack["qry"], stack["key"], present)
-        if hard:
-            inn, inter = hard_mode(t, stack["val"], stack["inv"], present, self.cfg.mu,
-                                   self.cfg.delta)  # fmt: skip
-        else:
-            inn, inter = soft(t, stack["val"], stack["inv"])
+        inn, inter, info = self._communicate(sf, x, present, hard, labels)
         out = [
             agent.decide(sf[n], inn[:, :, n], inter[:, :, n], x[n])[0]
             for n, agent in enumerate(self.agents)
         ]
-        return out, t
+        return out, info
+
+    def _communicate(self, sf, x, present, hard, labels):
+        """``inn``, ``int`` (B, T, N, ·) and the info ``forward`` returns."""
+        cfg = self.cfg
+        info = {"T": None, "aux": torch.zeros(())}
+        zeros = torch.zeros(*present.shape, cfg.inter)
+        if cfg.communication == "none":
+            return torch.zeros(*present.shape, cfg.value), zeros, info
+        if cfg.communication == "central":
+            up = torch.stack([a.comm.outgoing(xn) for a, xn in zip(self.agents, x, strict=True)],
+                             dim=2)  # fmt: skip
+            return self.central(up, present), zeros, info
+        if cfg.communication != "hangrcom":
+            messengers = [a.comm for a in self.agents]
+            inn, inter, extras = exchange(messengers, x, present)
+            info["aux"] = auxiliary_loss(messengers, extras, labels)
+            return inn, inter, info
+        gens = [agent.comm(s) for agent, s in zip(self.agents, sf, strict=True)]
+        stack = {k: torch.stack([g[k] for g in gens], dim=2) for k in gens[0]}
+        t = hangrcom.attention(stack["qry"], stack["key"], present)
+        info["T"] = t
+        if hard:
+            inn, inter = hangrcom.hard(t, stack["val"], stack["inv"], present, cfg.mu, cfg.delta)
+        else:
+            inn, inter = hangrcom.soft(t, stack["val"], stack["inv"])
+        return inn, inter, info

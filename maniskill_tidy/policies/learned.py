@@ -24,6 +24,7 @@ import torch
 
 from maniskill_tidy.envs.actions import MIN_PIXELS, REACH, Action, AgentState, Targeted
 from maniskill_tidy.knowledge import ROOM_TYPES, load_catalog
+from maniskill_tidy.models.communication import TASK
 from maniskill_tidy.models.decision import crop_goal, crop_layout
 from maniskill_tidy.perception.frame_inputs import FrameInputs, FrameReader
 from maniskill_tidy.policies.base import (
@@ -32,6 +33,7 @@ from maniskill_tidy.policies.base import (
     PLACE,
     Agent,
     AgentView,
+    CentralNode,
     Label,
     PublicInfo,
     SubGoal,
@@ -41,6 +43,7 @@ from maniskill_tidy.policies.base import (
 from maniskill_tidy.policies.channel import Message, Outbox
 from maniskill_tidy.policies.executor import SubGoalExecutor, goal_cell, relative
 from maniskill_tidy.policies.handshake_exchange import HandshakeExchange
+from maniskill_tidy.policies.message_exchange import LearnedCentral, MessageExchange
 from maniskill_tidy.policies.navigation import GridPlanner
 from maniskill_tidy.tasks.teams import SETTINGS
 
@@ -49,6 +52,7 @@ COMMIT_STEPS = 4  # env steps a sub-goal is pursued before a new prediction repl
 MISPLACED = 0.5  # the detector's probability above which an object in reach is picked up
 TOP_PUT = 3  # receptacle types (F_a's likeliest) an object may be put down on
 DEFAULT_CONFIG = Path("agents/hangrcom.yaml")
+ROUNDS = {"hangrcom": 3}  # communication rounds per step; the baselines send once
 
 
 def resolve(path: str | Path) -> Path:
@@ -92,15 +96,32 @@ def decode(
     return Decision(subtask, subgoal)
 
 
+def task_indices(logits: dict[str, torch.Tensor]) -> torch.Tensor:
+    """The predicted sub-task as the labels index it (kind, object, receptacle, room; object
+    and receptacle -1 in an Explore sub-task): what a state message carries next step."""
+    best = [int(logits[k].reshape(-1, logits[k].shape[-1])[-1].argmax()) for k in TASK]
+    if best[0] == 0:  # Explore
+        best[1] = best[2] = -1
+    return torch.tensor(best)
+
+
 class LearnedAgent(Agent):
     def __init__(self, name: str, public: PublicInfo, outbox: Outbox, team: LearnedTeam) -> None:
         super().__init__(name, public, outbox)
         model, self.perception = team.models(public.capabilities)
         self.i = public.agents.index(name)
         self.decision = model.agents[self.i]
-        self.exchange = HandshakeExchange(
-            name, public.agents, outbox, model.cfg.mu, model.cfg.delta
-        )
+        self.scheme = model.cfg.communication
+        self.exchange: HandshakeExchange | MessageExchange | None = None
+        if self.scheme == "hangrcom":
+            self.exchange = HandshakeExchange(
+                name, public.agents, outbox, model.cfg.mu, model.cfg.delta
+            )
+        elif self.scheme != "none":
+            self.exchange = MessageExchange(
+                name, outbox, self.decision.comm, model.cfg.value, model.cfg.inter
+            )
+        self.prev_task = torch.full((4,), -1)  # the sub-task it pursued last step (indices)
         self.reader = FrameReader(public.house, public.instances)
         self.planner = GridPlanner(public.house)
         rng = np.random.default_rng([public.seed, self.i, 11])
@@ -147,6 +168,7 @@ class LearnedAgent(Agent):
             pose=torch.from_numpy(f.pose)[None, None],
             held=torch.tensor([[f.held]]),
             failed=torch.tensor([[float(self.failed)]]),
+            prev_task=self.prev_task[None, None],
         )
         if self.decision.cfg.layout:
             x["layout"] = torch.from_numpy(crop_layout(f.crop))[None, None]
@@ -157,26 +179,41 @@ class LearnedAgent(Agent):
             sf, state = self.decision.state(x, self.lstm[0])
             self.lstm = (state, *self.lstm[1:])
             self.sf = sf
-            self.gens = {k: v[0, 0] for k, v in self.decision.comm(sf).items()}
+            if self.scheme == "hangrcom":
+                self.gens = {k: v[0, 0] for k, v in self.decision.comm(sf).items()}
 
-    # ------------------------------------------------------------------ HanGrCom
+    # ------------------------------------------------------------------ communication
     def send(self, round: int, inbox: list[Message]) -> None:
-        self.exchange.send(round, inbox, self.gens)
+        if isinstance(self.exchange, HandshakeExchange):
+            self.exchange.send(round, inbox, self.gens)
+        elif self.exchange is not None:
+            self.exchange.send(round, self.x)
+
+    def _received(self, inbox: list[Message]) -> tuple[torch.Tensor, torch.Tensor]:
+        """``inn`` and ``int`` from this step's inbox (zeros without communication)."""
+        if isinstance(self.exchange, HandshakeExchange):
+            return self.exchange.combine(inbox, self.gens)
+        if self.exchange is not None:
+            return self.exchange.combine(inbox)
+        cfg = self.decision.cfg
+        return torch.zeros(cfg.value), torch.zeros(cfg.inter)
 
     # ------------------------------------------------------------------ deciding and acting
     def act(self, inbox: list[Message]) -> Action | Targeted:
-        inn, inter = self.exchange.combine(inbox, self.gens)
+        inn, inter = self._received(inbox)
         with torch.no_grad():
             logits, states = self.decision.decide(
                 self.sf, inn[None, None], inter[None, None], self.x, self.lstm[1:]
             )
         self.lstm = (self.lstm[0], *states)
         d = decode(logits, self.ope_threshold, self.sampler)
+        self.prev_task = task_indices(logits)
         self.p_receptacle = logits["receptacle"].reshape(-1, logits["receptacle"].shape[-1])[-1]
         self.p_receptacle = self.p_receptacle.softmax(-1).numpy()
         self._label = (d.subtask, d.subgoal)
         ex = self.exchange
-        self._trace = {"T": ex.T, "groups": ex.groups(), "links": ex.links()}
+        if isinstance(ex, HandshakeExchange):
+            self._trace = {"T": ex.T, "groups": ex.groups(), "links": ex.links()}
         action = self._act(d)
         self._last_op = action.action if isinstance(action, Targeted) else action
         return action
@@ -311,11 +348,17 @@ class LearnedTeam(Team):
     def make_agent(self, name: str, public: PublicInfo, outbox: Outbox) -> Agent:
         return LearnedAgent(name, public, outbox, self)
 
+    def make_central(self, public: PublicInfo, outbox: Outbox) -> CentralNode | None:
+        model, _ = self.models(public.capabilities)
+        return LearnedCentral(public, outbox, model.central) if model.central else None
+
 
 def learned_team_class(config: str | Path) -> type[LearnedTeam]:
     """A team class named after an agent config's ``name`` (``eval --policy CONFIG.yaml``)."""
     from maniskill_tidy.training.decision_trainer import AgentConfig
 
     cfg = AgentConfig.load(resolve(config))
-    attrs = {"name": cfg.name, "config_file": resolve(config)}
+    scheme = cfg.decision().communication
+    attrs = {"name": cfg.name, "config_file": resolve(config), "communication": scheme,
+             "central": scheme == "central", "rounds": ROUNDS.get(scheme, 1)}  # fmt: skip
     return type(f"LearnedTeam_{cfg.name}", (LearnedTeam,), attrs)

@@ -36,6 +36,7 @@ from scipy.stats import rankdata
 from tqdm import tqdm
 
 from maniskill_tidy.knowledge import ROOM_TYPES, load_catalog
+from maniskill_tidy.models.communication import SCHEMES, TASK
 from maniskill_tidy.models.decision import (
     HEADS_GOAL,
     HEADS_TASK,
@@ -126,6 +127,11 @@ class AgentConfig:
             if bad:
                 raise ValueError(f"{path}: unknown {section} keys {bad}; expected {sorted(names)}")
         cfg.acting()  # checks the act section's values
+        scheme = cfg.model.get("communication", "hangrcom")
+        if scheme not in SCHEMES:
+            raise ValueError(
+                f"{path}: model communication {scheme!r}: expected one of {list(SCHEMES)}"
+            )
         if cfg.model.get("goal_map") and not cfg.model.get("layout"):
             raise ValueError(f"{path}: model goal_map needs layout: true (the goal is its channel)")
         for section in ("train_demos", "val_demos"):
@@ -181,6 +187,9 @@ class Rows:
             xs.append({k: v[rows].float() if v.is_floating_point() else v[rows]
                        for k, v in self.x.items()})  # fmt: skip
             ys.append({k: torch.where(present[:, :, n], v[rows], -1) for k, v in self.y.items()})
+        for xn, yn in zip(xs, ys, strict=True):  # the sub-task a state message carries
+            task = torch.stack([yn[k] for k in TASK], dim=-1)
+            xn["prev_task"] = torch.cat([torch.full_like(task[:, :1], -1), task[:, :-1]], dim=1)
         return xs, present, ys
 
 
@@ -295,8 +304,8 @@ def evaluate(model: TeamDecision, rows: Rows, hard: bool, batch: int = 16) -> di
     ope_p, ope_y = [], []
     for start in range(0, rows.episodes, batch):
         xs, present, ys = rows.batch(np.arange(start, min(start + batch, rows.episodes)))
-        out, _ = model(xs, present, hard=hard)
-        losses.append(float(bc_loss(out, ys)))
+        out, info = model(xs, present, hard=hard, labels=ys)
+        losses.append(float(bc_loss(out, ys) + info["aux"]))
         for logits, y in zip(out, ys, strict=True):
             for head in LABELS:
                 ok = y[head] >= 0
@@ -378,7 +387,8 @@ def fit(
         total = 0.0
         for i in range(0, len(order), s.batch):
             xs, present, ys = train.batch(order[i : i + s.batch])
-            loss = bc_loss(model(xs, present, hard=bool(rng.random() < s.hard_fraction))[0], ys)
+            out, info = model(xs, present, hard=bool(rng.random() < s.hard_fraction), labels=ys)
+            loss = bc_loss(out, ys) + info["aux"]
             optimiser.zero_grad()
             loss.backward()
             torch.nn.utils.clip_grad_norm_(model.parameters(), 5.0)

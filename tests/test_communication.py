@@ -1,0 +1,181 @@
+"""The learned communication baselines: what each sends, that evaluation computes what training
+does, and that each plays legally through the runner."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from maniskill_tidy.eval.episode import play_episode
+from maniskill_tidy.eval.runner import RunConfig, make_env
+from maniskill_tidy.models.communication import MISPLACED, auxiliary_loss, exchange
+from maniskill_tidy.models.decision import DecisionConfig, TeamDecision
+from maniskill_tidy.policies import make_team
+from maniskill_tidy.policies.channel import CENTRAL, Channel, Outbox
+from maniskill_tidy.policies.message_exchange import LearnedCentral, MessageExchange
+from maniskill_tidy.training.decision_trainer import AgentConfig
+
+N = 3
+MESSAGE = {"broadcast": 410, "cond": 410, "cmpr": 110, "inten": 10}
+STEPS = 15
+
+
+def _inputs(rng: np.random.Generator, n: int = N, mis=None) -> list[dict[str, torch.Tensor]]:
+    """One step's inputs (1, 1, ·) of n agents."""
+    out = []
+    for i in range(n):
+        def f(*shape):
+            return torch.from_numpy(rng.normal(size=(1, 1, *shape)).astype(np.float32))
+
+        out.append(dict(
+            sv=f(256), sm=f(256), fd=f(256), fp=f(256), failed=torch.zeros(1, 1),
+            mis=torch.tensor([[mis[i] if mis is not None else rng.random()]], dtype=torch.float32),
+            det=torch.ones(1, 1), pose=f(4) * 3, va=torch.tensor([[[1.0, float(i > 0), 1.0]]]),
+            held=torch.tensor([[-1]]), prev_task=torch.tensor([[[1, i, 2 * i, 0]]]),
+        ))  # fmt: skip
+    return out
+
+
+@pytest.mark.parametrize("scheme", ["broadcast", "cond", "cmpr", "inten", "central"])
+def test_evaluation_reads_the_messages_as_training_does(scheme):
+    """Per-agent exchange over the counting channel = the team-level function trained."""
+    torch.manual_seed(0)
+    model = TeamDecision(DecisionConfig(communication=scheme), N).eval()
+    x = _inputs(np.random.default_rng(1), mis=[0.9, 0.1, 0.7])
+    present = torch.ones(1, 1, N, dtype=torch.bool)
+    with torch.no_grad():
+        inn, inter, _ = model._communicate(None, x, present, True, None)
+    names = [f"agent_{i}" for i in range(N)]
+    channel = Channel(names, central=scheme == "central")
+    ex = [MessageExchange(a, Outbox(channel, a), model.agents[i].comm, 64, 64)
+          for i, a in enumerate(names)]  # fmt: skip
+    for e, xi in zip(ex, x, strict=True):
+        e.send(0, xi)
+    if scheme == "central":
+        node = LearnedCentral(types_public(names), Outbox(channel, CENTRAL), model.central)
+        node.send(0, channel.inbox(CENTRAL))
+    for i, e in enumerate(ex):
+        got_inn, got_inter = e.combine(channel.inbox(names[i]))
+        assert torch.allclose(got_inn, inn[0, 0, i], atol=1e-5), (scheme, i)
+        assert torch.allclose(got_inter, inter[0, 0, i], atol=1e-5), (scheme, i)
+    dims = sorted(m.dims for m in channel.step_messages)
+    if scheme == "central":
+        assert dims == [64] * N + [410] * N
+    elif scheme == "cond":  # agents 0 and 2 see a likely misplaced object, agent 1 does not
+        assert {m.sender for m in channel.step_messages} == {"agent_0", "agent_2"}
+        assert dims == [410] * 2 * (N - 1) and MISPLACED == 0.5
+    else:
+        assert dims == [MESSAGE[scheme]] * N * (N - 1)
+
+
+def types_public(names):
+    from types import SimpleNamespace
+
+    return SimpleNamespace(agents=names)  # the central node reads only the agents' names
+
+
+def test_a_receiver_without_messages_gets_zeros_and_absent_agents_send_nothing():
+    torch.manual_seed(0)
+    model = TeamDecision(DecisionConfig(communication="cond"), N)
+    x = _inputs(np.random.default_rng(2), mis=[0.1, 0.1, 0.9])
+    present = torch.tensor([[[True, True, False]]])  # the only sender has stopped
+    inn, inter, _ = model._communicate(None, x, present, True, None)
+    assert inn.abs().sum() == 0 and inter.abs().sum() == 0
+
+
+def test_cmpr_learns_to_decode_and_inten_to_predict_the_senders_sub_goal():
+    torch.manual_seed(0)
+    rng = np.random.default_rng(3)
+    for scheme in ("cmpr", "inten"):
+        model = TeamDecision(DecisionConfig(communication=scheme), N)
+        messengers = [a.comm for a in model.agents]
+        opt = torch.optim.Adam(model.parameters(), lr=3e-3)
+        x = _inputs(rng)
+        present = torch.ones(1, 1, N, dtype=torch.bool)
+        ys = [{"dx": torch.tensor([[i + 2]]), "dy": torch.tensor([[6 - i]])} for i in range(N)]
+        losses = []
+        for _ in range(60):
+            _, _, extras = exchange(messengers, x, present)
+            loss = auxiliary_loss(messengers, extras, ys)
+            opt.zero_grad()
+            loss.backward()
+            opt.step()
+            losses.append(loss.item())
+        assert losses[-1] < 0.2 * losses[0], (scheme, losses[0], losses[-1])
+        if scheme == "inten":  # the labels are the senders': each receiver predicts them
+            _, _, extras = exchange(messengers, x, present)
+            intent = extras["pairs"][0]["intent"][0, 0]  # receiver 0 about senders 0..2
+            assert intent[1, :9].argmax() == 3 and intent[2, 9:].argmax() == 4
+
+
+def test_an_unknown_communication_is_refused_in_one_line(tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("name: x\nout: y\nmodel: {communication: telepathy}\n")
+    with pytest.raises(ValueError, match="communication 'telepathy'.*expected one of"):
+        AgentConfig.load(bad)
+
+
+class Traffic:
+    def start(self, env, team, channel) -> None:
+        self.env, self.steps, self.illegal = env, [], []
+
+    def decided(self, t, actions, labels) -> None:
+        from maniskill_tidy.envs.actions import Action, Targeted, parse_action
+
+        for a in self.env.agents:
+            if a.name in actions:
+                parse_action(actions[a.name], a.n_actions, a.name)  # raises if illegal
+                act = actions[a.name]
+                act = act.action if isinstance(act, Targeted) else Action(int(act))
+                if not a.manipulator and act >= Action.PickUp:
+                    self.illegal.append((t, a.name, act))
+        self.active = sorted(actions)
+
+    def log_step(self, t, obs, actions, info, channel, labels) -> None:
+        self.steps.append((self.active, list(channel.step_messages)))
+
+
+@pytest.fixture(scope="module")
+def played(tmp_path_factory, seeded_config):
+    root = tmp_path_factory.mktemp("variants")
+    env = make_env(RunConfig("hangrcom", "I", "test", None, "standard"))
+    env.unwrapped.max_steps = STEPS
+    out = {}
+    try:
+        for scheme in ("none", *MESSAGE, "central"):
+            team = make_team(str(seeded_config(root, scheme, f"{{communication: {scheme}}}",
+                                               settings=(("I", N),))))  # fmt: skip
+            traffic = Traffic()
+            record = play_episode(env, team, 10, 10, [traffic])
+            out[scheme] = (team, record, traffic)
+    finally:
+        env.close()
+    return out
+
+
+def test_each_variant_plays_legally_and_sends_what_it_is_specified_to(played):
+    for scheme, (team, record, traffic) in played.items():
+        assert team.communication == scheme and team.central == (scheme == "central")
+        assert record.length == STEPS and not traffic.illegal, scheme
+        total = 0
+        for active, messages in traffic.steps:
+            total += sum(m.dims for m in messages)
+            assert all(m.sender in active + [CENTRAL] for m in messages), scheme
+            if scheme == "none":
+                assert not messages
+            elif scheme == "central":
+                up = [m for m in messages if m.receiver == CENTRAL]
+                down = [m for m in messages if m.sender == CENTRAL]
+                assert sorted(m.sender for m in up) == active and {m.dims for m in up} == {410}
+                assert sorted(m.receiver for m in down) == active
+                assert {m.dims for m in down} == {64}
+            elif scheme == "cond":
+                for sender in {m.sender for m in messages}:
+                    mine = [m for m in messages if m.sender == sender]
+                    assert [m.dims for m in mine] == [410] * (N - 1)
+            else:
+                assert sorted(m.dims for m in messages) == [MESSAGE[scheme]] * (
+                    len(active) * (N - 1)
+                ), scheme
+        assert record.comm == total, scheme
