@@ -2,7 +2,7 @@
 PY := .venv/bin/python
 DEMO_DIR := out/demo
 
-.PHONY: setup test test-slow demo bench leaderboard train lint clean
+.PHONY: setup test test-slow demo bench leaderboard train train-all lint clean
 
 setup:
 	@bash scripts/setup.sh
@@ -58,6 +58,13 @@ train: setup
 	$(PY) -m maniskill_tidy.cli train perception --dataset $(DATA120) --out agents/perception
 	$(PY) -m maniskill_tidy.cli perception-report --agents agents/perception --dataset $(DATA120)
 	for s in $(TRAIN_SETTINGS); do $(PY) -m maniskill_tidy.cli train agents/hangrcom.yaml --setting $$s || exit 1; done
+
+# The paper's baselines and ablations (agents/*.yaml besides hangrcom.yaml): each trains on the
+# same demonstrations and features as hangrcom (built if missing), about 11 min per setting.
+VARIANTS ?= broadcomm condcomm cmprcomm intencomm centralcomm wo_comm wo_know wo_misobjdec wo_rearecpre
+train-all: setup
+	for v in $(VARIANTS); do for s in $(TRAIN_SETTINGS); do \
+		$(PY) -m maniskill_tidy.cli train agents/$$v.yaml --setting $$s || exit 1; done; done
 
 lint: setup
 	$(PY) -m ruff check maniskill_tidy tests

@@ -3,13 +3,15 @@ does, and that each plays legally through the runner."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 import torch
 
 from maniskill_tidy.eval.episode import play_episode
 from maniskill_tidy.eval.runner import RunConfig, make_env
-from maniskill_tidy.models.communication import MISPLACED, auxiliary_loss, exchange
+from maniskill_tidy.models.communication import MISPLACED, SCHEMES, auxiliary_loss, exchange
 from maniskill_tidy.models.decision import DecisionConfig, TeamDecision
 from maniskill_tidy.policies import make_team
 from maniskill_tidy.policies.channel import CENTRAL, Channel, Outbox
@@ -179,3 +181,35 @@ def test_each_variant_plays_legally_and_sends_what_it_is_specified_to(played):
                     len(active) * (N - 1)
                 ), scheme
         assert record.comm == total, scheme
+
+
+def test_the_ablations_cut_exactly_their_inputs():
+    from maniskill_tidy.models.decision import StateExtractor
+
+    rng = np.random.default_rng(4)
+    x = _inputs(rng, n=1)[0]
+    for option, cut, kept in (("misplaced_detector", ("fd", "mis"), "fp"),
+                              ("receptacle_predictor", ("fp",), "fd")):  # fmt: skip
+        torch.manual_seed(0)
+        f = StateExtractor(DecisionConfig(**{option: False}))
+        sf = f(x)[0]
+        for key in cut:
+            changed = {**x, key: x[key] + 1}
+            assert torch.equal(f(changed)[0], sf), (option, key)
+        assert not torch.equal(f({**x, kept: x[kept] + 1})[0], sf), option
+
+
+def test_a_variant_config_states_only_what_it_changes(tmp_path):
+    base = tmp_path / "base.yaml"
+    base.write_text("name: b\nout: o\nmodel: {layout: true, mu: 0.3}\nact: {ope_threshold: 0.2}\n")
+    (tmp_path / "v.yaml").write_text("base: base.yaml\nname: v\nmodel: {communication: cmpr}\n")
+    v = AgentConfig.load(tmp_path / "v.yaml")
+    assert (v.name, v.out, v.act) == ("v", "o", {"ope_threshold": 0.2})
+    assert v.model == {"layout": True, "mu": 0.3, "communication": "cmpr"}
+    base.write_text("base: v.yaml\nname: b\nout: o\n")
+    with pytest.raises(ValueError, match="inherits from itself"):
+        AgentConfig.load(tmp_path / "v.yaml")
+    shipped = Path(__file__).resolve().parents[1] / "agents"
+    for path in sorted(shipped.glob("*.yaml")):  # every shipped variant loads
+        cfg = AgentConfig.load(path)
+        assert cfg.out == f"agents/{path.stem}" and cfg.decision().communication in SCHEMES

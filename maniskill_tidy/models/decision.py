@@ -78,6 +78,11 @@ class DecisionConfig:
     layout: bool = False  # F_g reads sl (the crop's geometry) too
     goal_map: bool = False  # sl also reads the sub-task's target in the crop (needs layout)
     communication: str = "hangrcom"  # or a baseline of models/communication.py
+    # ablations (paper Section 6.5): without the misplaced-object detector F_s gets no fd and no
+    # misplaced probability, without the reasonable-receptacle predictor no fp (zeros: the
+    # layer sizes stay those of the full model)
+    misplaced_detector: bool = True
+    receptacle_predictor: bool = True
     mu: float = MU
     delta: float = DELTA
 
@@ -140,6 +145,7 @@ class StateExtractor(nn.Module):
 
     def __init__(self, cfg: DecisionConfig) -> None:
         super().__init__()
+        self.cfg = cfg
         self.held = nn.Embedding(cfg.categories + 1, 16)  # index 0: holds nothing
         width = 3 + POSE + 16 + 1 + 2 * cfg.perception + 2
         self.fuse = nn.Sequential(nn.Linear(width, cfg.state), nn.ReLU())
@@ -147,9 +153,14 @@ class StateExtractor(nn.Module):
 
     def forward(self, x: dict[str, torch.Tensor], state=None):
         """Inputs (B, T, ·) -> sf (B, T, state) and the LSTM state."""
+        fd, fp, mis = x["fd"], x["fp"], x["mis"][..., None]
+        if not self.cfg.misplaced_detector:
+            fd, mis = torch.zeros_like(fd), torch.zeros_like(mis)
+        if not self.cfg.receptacle_predictor:
+            fp = torch.zeros_like(fp)
         z = torch.cat(
             [x["va"], encode_pose(x["pose"]), self.held(x["held"] + 1), x["failed"][..., None],
-             x["fd"], x["fp"], x["mis"][..., None], x["det"][..., None]],
+             fd, fp, mis, x["det"][..., None]],
             dim=-1,
         )  # fmt: skip
         return self.lstm(self.fuse(z), state)

@@ -265,14 +265,16 @@ class LearnedAgent(Agent):
         if the misplaced-object detector finds it misplaced (p >= MISPLACED)."""
         f: FrameInputs = self.frame
         here = np.asarray(self.public.house.navgrid.center(*self.state.cell))
+        # without the detector (its ablation) any object in reach, the predicted type first
+        gate = MISPLACED if self.decision.cfg.misplaced_detector else -1.0
         near = [i for i in range(len(f.det_object))
                 if np.hypot(*(f.det_position[i, :2] - here)) <= REACH
-                and self.p_detections[i] >= MISPLACED]  # fmt: skip
+                and self.p_detections[i] >= gate]  # fmt: skip
         if not near:
             return None  # nothing misplaced in reach: not worth a failed action
         kind = load_catalog().categories
         same = [i for i in near if kind[f.det_type[i]] == subtask.object_type]
-        best = max(same or near, key=lambda i: self.p_detections[i])
+        best = max(same or near, key=lambda i: (self.p_detections[i] if gate > 0 else 0, -i))
         self.picked_from = int(f.det_rest[best])
         return Targeted(Action.PickUp, f.det_object[best])
 

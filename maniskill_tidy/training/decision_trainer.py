@@ -106,11 +106,7 @@ class AgentConfig:
     @classmethod
     def load(cls, path: Path) -> AgentConfig:
         path = Path(path)
-        if not path.is_file():
-            raise FileNotFoundError(f"{path}: no such agent config (a YAML file under agents/)")
-        raw = yaml.safe_load(path.read_text()) or {}
-        if not isinstance(raw, dict):
-            raise ValueError(f"{path}: expected a mapping of settings, got {type(raw).__name__}")
+        raw = _read_config(path)
         known = {f.name for f in fields(cls)}
         unknown = sorted(set(raw) - known)
         if unknown:
@@ -158,6 +154,27 @@ class AgentConfig:
         if s.select not in ("loss", "accuracy"):
             raise ValueError(f"train select {s.select!r}: expected 'loss' or 'accuracy'")
         return s
+
+
+def _read_config(path: Path, seen: tuple[Path, ...] = ()) -> dict:
+    """A config's mapping; ``base: OTHER.yaml`` (relative to it) inherits OTHER's keys, the
+    sections (model, train, act, ...) merged key by key, so that a variant states only what it
+    changes."""
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such agent config (a YAML file under agents/)")
+    raw = yaml.safe_load(path.read_text()) or {}
+    if not isinstance(raw, dict):
+        raise ValueError(f"{path}: expected a mapping of settings, got {type(raw).__name__}")
+    if "base" not in raw:
+        return raw
+    base_path = (path.parent / str(raw.pop("base"))).resolve()
+    if base_path in seen:
+        raise ValueError(f"{path}: its base {base_path} inherits from itself")
+    merged = _read_config(base_path, (*seen, path.resolve()))
+    for key, value in raw.items():
+        both = isinstance(value, dict) and isinstance(merged.get(key), dict)
+        merged[key] = {**merged[key], **value} if both else value
+    return merged
 
 
 # ------------------------------------------------------------------- features of every row
