@@ -61,7 +61,7 @@ train: setup
 
 # The paper's baselines and ablations (agents/*.yaml besides hangrcom.yaml): each trains on the
 # same demonstrations and features as hangrcom (built if missing), about 11 min per setting.
-VARIANTS ?= broadcomm condcomm cmprcomm intencomm centralcomm wo_comm wo_know wo_misobjdec wo_rearecpre
+VARIANTS ?= broadcomm condcomm cmprcomm intencomm centralcomm wo_comm wo_know wo_misobjdec wo_rearecpre wo_hierdec
 train-all: setup
 	for v in $(VARIANTS); do for s in $(TRAIN_SETTINGS); do \
 		$(PY) -m maniskill_tidy.cli train agents/$$v.yaml --setting $$s || exit 1; done; done

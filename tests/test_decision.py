@@ -246,6 +246,27 @@ def test_auc_is_the_chance_a_positive_outranks_a_negative():
     assert auc(torch.tensor([0.5, 0.2]), torch.tensor([False, False])) is None
 
 
+@pytest.mark.parametrize("variant", [{"hierarchical": False}, {"communication": "cmpr"}])
+def test_a_variant_learns_its_own_heads_from_the_same_rows(rows, tmp_path, variant):
+    """w/o HierDec. clones the teacher's low-level actions; a baseline's auxiliary loss (the
+    code's reconstruction) is part of what is minimised."""
+    train, _ = rows
+    cfg = replace(_cfg(), **variant)
+    torch.manual_seed(0)
+    model = TeamDecision(cfg, 3)
+    before = evaluate(model, train, hard=True)
+    s = TrainSettings(epochs=4, batch=1, lr=3e-3, seed=0, hard_fraction=0.5, patience=10)
+    fit(model, train, train, s, tmp_path / "ckpt", progress=False)
+    after = evaluate(model, train, hard=True)
+    assert after["loss"] < before["loss"] * 0.8, (before["loss"], after["loss"])
+    heads = ("action", "receptacle") if variant.get("hierarchical") is False else None
+    if heads:
+        assert set(after["accuracy"]) == set(heads) and "ope_auc" not in after
+        assert after["accuracy"]["action"] > after["majority"]["action"]
+        n = int((train.index >= 0).sum())
+        assert after["labelled"]["action"] == n  # every row has the teacher's action
+
+
 def test_a_saved_model_loads_in_fp16_precision(tmp_path):
     torch.manual_seed(1)
     model = TeamDecision(_cfg(), 3)

@@ -34,6 +34,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from maniskill_tidy.envs.actions import Action
 from maniskill_tidy.knowledge import load_catalog
 from maniskill_tidy.models import hangrcom
 from maniskill_tidy.models.communication import (
@@ -83,6 +84,8 @@ class DecisionConfig:
     # layer sizes stay those of the full model)
     misplaced_detector: bool = True
     receptacle_predictor: bool = True
+    # w/o HierDec.: no sub-task and sub-goal; one LSTM predicts the env's low-level action
+    hierarchical: bool = True
     mu: float = MU
     delta: float = DELTA
 
@@ -229,6 +232,26 @@ class SubGoalPredictor(nn.Module):
         return torch.where(holding, rec, obj)
 
 
+class DirectPolicy(nn.Module):
+    """w/o HierDec. (paper Section 6.5): LSTM -> Linear(hidden, 256) -> the low-level action
+    (the env's 11), trained on the teacher's actions. A receptacle-type head only names the
+    surface a PutDown targets (the env's PutDown needs one), as a detector's output would."""
+
+    def __init__(self, cfg: DecisionConfig, width: int) -> None:
+        super().__init__()
+        self.lstm = nn.LSTM(width, cfg.hidden, batch_first=True)
+        self.embed = nn.Sequential(nn.Linear(cfg.hidden, cfg.embed), nn.ReLU())
+        self.heads = nn.ModuleDict(
+            {"action": nn.Linear(cfg.embed, len(Action)),
+             "receptacle": nn.Linear(cfg.embed, cfg.receptacles)}
+        )  # fmt: skip
+
+    def forward(self, x: torch.Tensor, state=None):
+        h, state = self.lstm(x, state)
+        h = self.embed(h)
+        return {k: head(h) for k, head in self.heads.items()}, state
+
+
 class AgentDecision(nn.Module):
     """One agent's F_s, communication (HanGrCom's generators or a baseline's messenger), F_a
     and F_g."""
@@ -246,11 +269,18 @@ class AgentDecision(nn.Module):
             self.comm = HanGrCom(cfg.state, cfg.key, cfg.value, cfg.inter)
         elif cfg.communication != "none":
             self.comm = Messenger(cfg)
-        self.subtask = SubTaskPredictor(cfg, cfg.state + cfg.value + cfg.inter)
+        width = cfg.state + cfg.value + cfg.inter
+        if not cfg.hierarchical:
+            self.direct = DirectPolicy(cfg, width)
+            return
+        self.subtask = SubTaskPredictor(cfg, width)
         self.subgoal = SubGoalPredictor(cfg)
 
     def decide(self, sf, inn, inter, x, states=(None, None)):
         """F_a and F_g on (B, T, ·) inputs: logits of every head and the LSTM states."""
+        if not self.cfg.hierarchical:
+            logits, state = self.direct(torch.cat([sf, inn, inter], dim=-1), states[0])
+            return logits, (state, None)
         se, task, s_task = self.subtask(torch.cat([sf, inn, inter], dim=-1), states[0])
         goal, s_goal = self.subgoal(se, x, states[1], task)
         return {**task, **goal}, (s_task, s_goal)

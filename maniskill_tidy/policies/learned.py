@@ -206,10 +206,14 @@ class LearnedAgent(Agent):
                 self.sf, inn[None, None], inter[None, None], self.x, self.lstm[1:]
             )
         self.lstm = (self.lstm[0], *states)
-        d = decode(logits, self.ope_threshold, self.sampler)
-        self.prev_task = task_indices(logits)
         self.p_receptacle = logits["receptacle"].reshape(-1, logits["receptacle"].shape[-1])[-1]
         self.p_receptacle = self.p_receptacle.softmax(-1).numpy()
+        if not self.decision.cfg.hierarchical:
+            action = self._act_direct(logits["action"].reshape(-1, len(Action))[-1])
+            self._last_op = action.action if isinstance(action, Targeted) else action
+            return action
+        d = decode(logits, self.ope_threshold, self.sampler)
+        self.prev_task = task_indices(logits)
         self._label = (d.subtask, d.subgoal)
         ex = self.exchange
         if isinstance(ex, HandshakeExchange):
@@ -244,6 +248,26 @@ class LearnedAgent(Agent):
         if stop:
             return Action.Stop
         return self.executor.look(s)
+
+    def _act_direct(self, logits: torch.Tensor) -> Action | Targeted:
+        """w/o HierDec.: the likeliest low-level action (drawn, with ``sample_subgoal``) that
+        the agent can take; an operation with nothing to operate on gives way to the next."""
+        p = logits.double().softmax(-1).numpy()
+        if not self.capability[1]:
+            p[int(Action.PickUp) :] = 0
+        options = np.flatnonzero(p > 0)
+        if self.sampler is not None:
+            order = self.sampler.choice(options, len(options), replace=False,
+                                        p=p[options] / p[options].sum())  # fmt: skip
+        else:
+            order = options[np.argsort(-p[options], kind="stable")]
+        for a in map(Action, map(int, order)):
+            if a < Action.PickUp:
+                return a
+            op = self._operation(a.name, SubTask(EXPLORE))
+            if op is not None:
+                return op
+        return Action.RotateLeft  # unreachable: the navigation actions are always possible
 
     def _operation(self, ope: str, subtask: SubTask) -> Action | Targeted | None:
         """``ope`` on what is in view, or None when it cannot succeed from here."""

@@ -53,6 +53,7 @@ from maniskill_tidy.training.decision_data import DemoConfig, build_demo_feature
 FEATURES = ("sv", "sm", "fd", "fp")  # 256-d each, cached as fp16
 SCALARS = ("mis", "det", "failed")
 LABELS = HEADS_TASK + HEADS_GOAL
+DIRECT = ("action", "receptacle")  # w/o HierDec.'s heads
 OFFSET = {"dx": 4, "dy": 4}  # -4..4 -> class 0..8
 
 
@@ -229,6 +230,7 @@ def embed_split(directory: Path, perception_dir: Path, cache: Path, progress: bo
     path = cache / f"features_{key}.pt"
     if path.is_file():
         saved = torch.load(path, weights_only=False)
+        saved["y"]["action"] = action_labels(directory)
         return Rows(saved["x"], saved["y"], saved["index"], key)
     perception = load_agent(perception_dir)
     k = perception.cfg.categories
@@ -286,6 +288,7 @@ def embed_split(directory: Path, perception_dir: Path, cache: Path, progress: bo
     buf = io.BytesIO()
     torch.save({"x": x, "y": y, "index": index}, buf)
     write_atomic(path, buf.getvalue())
+    y["action"] = action_labels(directory)
     return Rows(x, y, index, key)
 
 
@@ -297,10 +300,11 @@ def used_input(name: str, cfg: DecisionConfig) -> bool:
 
 # ------------------------------------------------------------------- loss and metrics
 def bc_loss(out: list[dict], ys: list[dict]) -> torch.Tensor:
-    """Eq. 2 summed over the agents: Loss_subtask + Loss_subgoal, every weight 1."""
+    """Eq. 2 summed over the agents: Loss_subtask + Loss_subgoal, every weight 1 (w/o HierDec.:
+    the cross-entropy of the low-level action and of the receptacle)."""
     total = torch.zeros(())
     for logits, y in zip(out, ys, strict=True):
-        for head in LABELS:
+        for head in logits:
             target = y[head]
             if (target >= 0).any():
                 total = total + F.cross_entropy(
@@ -315,8 +319,9 @@ def evaluate(model: TeamDecision, rows: Rows, hard: bool, batch: int = 16) -> di
     each operation's probability ranks the steps labelled with it (``ope_auc``: the act
     section's ``ope_threshold`` relies on that ranking, not on the argmax)."""
     model.eval()
-    correct = {h: 0 for h in LABELS}
-    count = {h: 0 for h in LABELS}
+    heads = model_heads(model.cfg)
+    correct = {h: 0 for h in heads}
+    count = {h: 0 for h in heads}
     losses = []
     ope_p, ope_y = [], []
     for start in range(0, rows.episodes, batch):
@@ -324,21 +329,39 @@ def evaluate(model: TeamDecision, rows: Rows, hard: bool, batch: int = 16) -> di
         out, info = model(xs, present, hard=hard, labels=ys)
         losses.append(float(bc_loss(out, ys) + info["aux"]))
         for logits, y in zip(out, ys, strict=True):
-            for head in LABELS:
+            for head in heads:
                 ok = y[head] >= 0
                 correct[head] += int((logits[head].argmax(-1)[ok] == y[head][ok]).sum())
                 count[head] += int(ok.sum())
-            ok = y["ope"] >= 0
-            ope_p.append(logits["ope"].softmax(-1)[ok])
-            ope_y.append(y["ope"][ok])
-    p, y = torch.cat(ope_p), torch.cat(ope_y)
-    return {
-        "ope_auc": {op: auc(p[:, i], y == i) for i, op in enumerate(OPERATIONS) if i},
+            if "ope" in logits:
+                ok = y["ope"] >= 0
+                ope_p.append(logits["ope"].softmax(-1)[ok])
+                ope_y.append(y["ope"][ok])
+    out = {
         "loss": float(np.mean(losses)),
-        "accuracy": {h: correct[h] / count[h] if count[h] else None for h in LABELS},
-        "majority": majority(rows),
+        "accuracy": {h: correct[h] / count[h] if count[h] else None for h in heads},
+        "majority": majority(rows, heads),
         "labelled": count,
     }
+    if ope_p:
+        p, y = torch.cat(ope_p), torch.cat(ope_y)
+        out["ope_auc"] = {op: auc(p[:, i], y == i) for i, op in enumerate(OPERATIONS) if i}
+    return out
+
+
+def model_heads(cfg: DecisionConfig) -> tuple[str, ...]:
+    """The heads a model predicts (and the card reports)."""
+    return LABELS if cfg.hierarchical else DIRECT
+
+
+def action_labels(directory: Path) -> torch.Tensor:
+    """The teacher's low-level action of every row of a demos folder, in the rows' order
+    (w/o HierDec.'s labels; read from the shards, a few kB each)."""
+    parts = []
+    for shard in sorted(directory.glob("house_*.npz")):
+        with np.load(shard) as z:
+            parts.append(torch.from_numpy(z["action"].astype(np.int64)))
+    return torch.cat(parts)
 
 
 def auc(score: torch.Tensor, positive: torch.Tensor) -> float | None:
@@ -350,11 +373,11 @@ def auc(score: torch.Tensor, positive: torch.Tensor) -> float | None:
     return float((ranks[positive].sum() - n_pos * (n_pos + 1) / 2) / (n_pos * n_neg))
 
 
-def majority(rows: Rows) -> dict[str, float | None]:
+def majority(rows: Rows, heads: tuple[str, ...] = LABELS) -> dict[str, float | None]:
     """Each head's accuracy when always answering its most frequent label (the trivial
     baseline the card compares with)."""
     out = {}
-    for head in LABELS:
+    for head in heads:
         y = rows.y[head][rows.y[head] >= 0]
         out[head] = float(torch.bincount(y).max()) / len(y) if len(y) else None
     return out
@@ -545,9 +568,10 @@ def model_card(card: dict) -> str:
     lines = [
         f"# {card['name']}, Setting {card['setting']}",
         "",
-        "Hierarchical decision with HanGrCom (paper Sections 5.3-5.5), trained by behaviour "
-        f"cloning on the sub-tasks and sub-goals of the {teacher} team (`maniskill-tidy train "
-        f"{card['config']} --setting {card['setting']}`).",
+        f"{_method(card['decision'])}, trained by behaviour cloning on the "
+        f"{'sub-tasks and sub-goals' if card['decision'].get('hierarchical', True) else 'actions'}"
+        f" of the {teacher} team (`maniskill-tidy train {card['config']} --setting "
+        f"{card['setting']}`).",
         "",
         f"- agents: {card['agents']}, one model each, {card['parameters_per_agent']:,} "
         "parameters per agent, stored fp16",
@@ -587,7 +611,7 @@ def model_card(card: dict) -> str:
         "| head | inference mode | training mode | most frequent label | labelled rows |",
         "|---|---|---|---|---|",
     ]
-    for head in LABELS:
+    for head in hard["accuracy"]:
         a, b = (_fmt(m["accuracy"][head]) for m in (hard, soft))
         base = _fmt(hard.get("majority", {}).get(head))
         lines.append(f"| {head} | {a} | {b} | {base} | {hard['labelled'][head]} |")
@@ -603,6 +627,29 @@ def model_card(card: dict) -> str:
         )
     lines.append("")
     return "\n".join(lines)
+
+
+COMMUNICATION = {
+    "hangrcom": "HanGrCom (paper Sections 5.3-5.5)",
+    "none": "no communication (w/o Comm.)",
+    "broadcast": "BroadComm.: state and map embedding to every teammate",
+    "cond": "CondComm.: state and map embedding while a misplaced object is in view",
+    "cmpr": "CmprComm.: state and a 100-value code of the map embedding",
+    "inten": "IntenComm.: state and sub-task, and the teammates' predicted sub-goals",
+    "central": "CentralComm.: uploads to a central node that sends assignments",
+}
+
+
+def _method(decision: dict) -> str:
+    """What the card's model is, in words."""
+    how = "Hierarchical decision" if decision.get("hierarchical", True) else (
+        "Direct low-level actions (w/o HierDec.)")
+    parts = [f"{how} with {COMMUNICATION[decision.get('communication', 'hangrcom')]}"]
+    if not decision.get("misplaced_detector", True):
+        parts.append("without the misplaced-object detector (w/o MisObjDec.)")
+    if not decision.get("receptacle_predictor", True):
+        parts.append("without the reasonable-receptacle predictor (w/o ReaRecPre.)")
+    return ", ".join(parts)
 
 
 def _fmt(value: float | None) -> str:
