@@ -65,6 +65,7 @@ VARIANTS ?= broadcomm condcomm cmprcomm intencomm centralcomm wo_comm wo_know wo
 train-all: setup
 	for v in $(VARIANTS); do for s in $(TRAIN_SETTINGS); do \
 		$(PY) -m maniskill_tidy.cli train agents/$$v.yaml --setting $$s || exit 1; done; done
+	$(PY) -m maniskill_tidy.cli train agents/sa.yaml --setting I  # one manipulator: every setting
 
 lint: setup
 	$(PY) -m ruff check maniskill_tidy tests

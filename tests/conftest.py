@@ -16,7 +16,9 @@ def small_dataset(tmp_path_factory) -> Path:
     return out
 
 
-def _seeded_config(root: Path, name: str, model: str, settings=(("I", 3), ("II", 4))) -> Path:
+def _seeded_config(
+    root: Path, name: str, model: str, settings=(("I", 3), ("II", 4)), extra: str = ""
+) -> Path:
     """An agent config whose decision models are freshly initialised from a seed: for the
     learned team's mechanics (perception, messages, executor), not what training taught it."""
     import torch
@@ -27,7 +29,7 @@ def _seeded_config(root: Path, name: str, model: str, settings=(("I", 3), ("II",
     config = root / f"{name}.yaml"
     config.write_text(
         f"name: {name}\nout: {root / name}\nmodel: {model}\n"
-        "act: {ope_threshold: 0.1, sample_subgoal: true}\n"
+        "act: {ope_threshold: 0.1, sample_subgoal: true}\n" + extra
     )
     cfg = AgentConfig.load(config)
     for setting, agents in settings:

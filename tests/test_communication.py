@@ -218,3 +218,23 @@ def test_a_variant_config_states_only_what_it_changes(tmp_path):
     for path in sorted(shipped.glob("*.yaml")):  # every shipped variant loads
         cfg = AgentConfig.load(path)
         assert cfg.out == f"agents/{path.stem}" and cfg.decision().communication in SCHEMES
+
+
+def test_the_learned_sa_plays_alone_in_every_setting(tmp_path, seeded_config):
+    config = seeded_config(tmp_path, "sa", "{communication: none}", settings=(("I", 1),),
+                           extra="team: [[1, 1, 1]]\n")  # fmt: skip
+    for setting in ("I", "II"):
+        team = make_team(str(config))
+        assert team.team_override == [[1, 1, 1]]
+        env = make_env(RunConfig(str(config), setting, "test", None, 1))
+        env.unwrapped.max_steps = 5
+        try:
+            traffic = Traffic()
+            record = play_episode(env, team, 0, 0, [traffic])
+        finally:
+            env.close()
+        assert record.agents == 1 and record.comm == 0 and not traffic.illegal
+    from maniskill_tidy.training.decision_trainer import train_decision
+
+    with pytest.raises(ValueError, match="is trained with --setting I"):
+        train_decision(config, "II", progress=False)

@@ -17,7 +17,7 @@ from pathlib import Path
 from maniskill_tidy.eval.metrics import SPLITS, ces
 
 COLUMNS = ("Success", "%PS", "%FM", "#PL", "ACm", "CES")
-SAME_IN_EVERY_SETTING = ("sa",)  # policies whose team_override fixes the team
+SAME_IN_EVERY_SETTING = ("sa", "sa-learned")  # policies whose team_override fixes the team
 ORDER = (
     "sa",
     "random",

@@ -357,6 +357,8 @@ class LearnedTeam(Team):
 
         team = tuple(tuple(c) for c in capabilities)
         setting = next((s for s, members in SETTINGS.items() if members == team), None)
+        if self.team_override and team == tuple(map(tuple, self.team_override)):
+            setting = "I"  # a team of its own (SA) is trained once, on Setting I's episodes
         if setting is None:
             raise ValueError(
                 f"{self.config.name} is trained for the teams of Settings {sorted(SETTINGS)}, "
@@ -386,5 +388,6 @@ def learned_team_class(config: str | Path) -> type[LearnedTeam]:
     cfg = AgentConfig.load(resolve(config))
     scheme = cfg.decision().communication
     attrs = {"name": cfg.name, "config_file": resolve(config), "communication": scheme,
-             "central": scheme == "central", "rounds": ROUNDS.get(scheme, 1)}  # fmt: skip
+             "central": scheme == "central", "rounds": ROUNDS.get(scheme, 1),
+             "team_override": cfg.team}  # fmt: skip
     return type(f"LearnedTeam_{cfg.name}", (LearnedTeam,), attrs)

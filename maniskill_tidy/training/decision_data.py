@@ -182,8 +182,15 @@ class DemoRecorder:
 _worker: dict = {}
 
 
+def env_setting(cfg: DemoConfig):
+    """The env's team: the setting's, or the teacher's own (SA plays alone in every setting)."""
+    from maniskill_tidy.policies import team_class
+
+    return getattr(team_class(cfg.teacher), "team_override", None) or cfg.setting
+
+
 def _init(dataset: str | None, cfg: DemoConfig):
-    env = worker_env(dataset, cfg.setting, cfg.split)
+    env = worker_env(dataset, env_setting(cfg), cfg.split)
     _worker.update(env=env, cfg=cfg)
     return env.close
 
@@ -238,8 +245,9 @@ def build_demo_features(
     if cfg.teacher not in teachers:
         raise ValueError(f"unknown teacher {cfg.teacher!r}; expected one of {teachers}")
     probe = gym.make(
-        "HeteroTidy-v1", setting=cfg.setting, dataset=dataset, split=cfg.split, obs_mode="none"
-    )
+        "HeteroTidy-v1", setting=env_setting(cfg), dataset=dataset, split=cfg.split,
+        obs_mode="none",
+    )  # fmt: skip
     episodes = probe.unwrapped.episodes
     dataset_hash = episodes.dataset_hash
     by_house = select_episodes(episodes.episodes, cfg)

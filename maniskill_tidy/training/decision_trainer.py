@@ -103,6 +103,9 @@ class AgentConfig:
     train: dict = field(default_factory=dict)
     act: dict = field(default_factory=dict)
     notes: str = ""  # printed in the model card (e.g. why this many demonstrations)
+    # a team of its own, played in every setting (SA: [[1, 1, 1]], one manipulator); its
+    # teacher must play with the same team, and it is trained with --setting I
+    team: list | None = None
 
     @classmethod
     def load(cls, path: Path) -> AgentConfig:
@@ -493,6 +496,17 @@ def train_decision(config: Path, setting: str, progress: bool = True) -> dict:
     cfg = AgentConfig.load(config)
     if setting not in SETTINGS:
         raise ValueError(f"unknown setting {setting!r}; expected one of {sorted(SETTINGS)}")
+    if cfg.team is not None:
+        from maniskill_tidy.policies import team_class
+
+        if setting != "I":
+            raise ValueError(f"{config}: a team of its own ({cfg.team}) is trained with "
+                             "--setting I and played in every setting")  # fmt: skip
+        for split in (cfg.train_demos, cfg.val_demos):
+            teacher = split.get("teacher", "expert")
+            if getattr(team_class(teacher), "team_override", None) != cfg.team:
+                raise ValueError(f"{config}: teacher {teacher!r} does not play with the team "
+                                 f"{cfg.team}; expected a teacher with that team")  # fmt: skip
     settings = cfg.settings()
     manifests = {}
     for split, demo in (("train", cfg.train_demos), ("val", cfg.val_demos)):
