@@ -271,6 +271,33 @@ def test_leaderboard_assembles_ces_intervals_and_notes(tmp_path):
     assert (tmp_path / "leaderboard.png").read_bytes()[:4] == b"\x89PNG"
 
 
+def test_ablations_get_their_own_table_and_learned_rows_their_own_sa(tmp_path):
+    from maniskill_tidy.eval.leaderboard import pareto_front
+
+    learned = {"perception": "learned: small CNNs"}
+    runs = {
+        "sa": _summary("sa", [True, False, False, False] * 5, 0),
+        "sa-learned": {**_summary("sa-learned", [True] + [False] * 9, 0), **learned},
+        "hangrcom": {**_summary("hangrcom", [True, False] * 5, 240, communication="hangrcom"),
+                     **learned},
+        "wo_comm": {**_summary("wo_comm", [True, False, False, False] * 5, 0), **learned},
+    }  # fmt: skip
+    for policy, s in runs.items():
+        path = tmp_path / "results" / "setting_I" / policy / "summary.json"
+        path.parent.mkdir(parents=True)
+        path.write_text(json.dumps(s))
+    md = write_leaderboard(tmp_path).read_text()
+    methods, ablations = md.split("Ablations (the paper's Table 5):")
+    assert "| **wo_comm** |" in ablations and "| **wo_comm** |" not in methods
+    lines = ablations.splitlines()
+    i = next(k for k, line in enumerate(lines) if line.startswith("| **wo_comm** |"))
+    assert lines[i + 1].startswith("| Ours w/o Comm. *(paper)* |")
+    assert "| **hangrcom** |" in ablations  # the full model beside its ablations
+    ours = next(line for line in methods.splitlines() if line.startswith("| **hangrcom** |"))
+    assert ours.split("|")[-2].strip() == f"{ces(0.5, 0.1, 240.0):.1f}"  # against sa-learned
+    assert pareto_front(runs) == [(0.0, 0.25), (240.0, 0.5)]
+
+
 SA_CELLS = "0.1 0.2 0.15 0.3 0.4 0.35 0.5 0.6 0.55 100.0 200.0 150.0 - - - - - -"
 OURS_CELLS = (
     r"\textbf{0.121} 0.079 0.103 0.194 0.16 0.179 0.739 0.726 0.733 186.1 252.6 215.0 "
@@ -298,4 +325,7 @@ def test_paper_tables_are_extracted_cell_by_cell():
     assert len(ref["columns"]) == 18
     paper = REFERENCE / "../paper/heterogeneous-embodied-multi-agent-collaboration.tex"
     if paper.is_file():  # the shipped table is what the paper says
-        assert extract(paper.read_text())["rows"] == paper_reference()["rows"]
+        shipped = extract(paper.read_text())
+        assert shipped["rows"] == paper_reference()["rows"]
+        assert shipped["ablations"] == paper_reference()["ablations"]
+        assert shipped["ablations"]["I"]["Ours w/o Comm."][:3] == [0.045, 0.030, 0.038]

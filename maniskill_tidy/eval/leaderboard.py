@@ -1,11 +1,14 @@
-"""``eval/LEADERBOARD.md``: every run's summary in the layout of the paper's Tables 3 and 4.
+"""``eval/LEADERBOARD.md``: every run's summary in the layout of the paper's Tables 3-6.
 
-Rows are methods, columns Success, %PS, %FM, #PL, ACm and CES for Single / Cross / All. Our rows
+Per setting a table of methods (Tables 3-4) and one of ablations (Tables 5-6); rows are methods,
+columns Success, %PS, %FM, #PL, ACm and CES for Single / Cross / All. Our rows
 come from ``eval/results/setting_*/<policy>/summary.json``; the paper's own figures (measured in
 AI2-THOR/ProcTHOR with learned models, so not directly comparable) follow as reference rows.
-CES needs the single-agent baseline's success in the same setting and split: our ``sa`` run for
-our rows, the paper's SA row for the paper's. Our Success cells carry their 95 % bootstrap
-interval; a run whose episodes were played by more than one code version is flagged.
+CES needs the single-agent baseline's success in the same setting and split: our learned SA
+(``sa-learned``) for our learned rows, our heuristic ``sa`` for the heuristic rows, the paper's
+SA row for the paper's. A plot puts Success against ACm, with the Pareto front of our rows.
+Our Success cells carry their 95 % bootstrap interval; a run whose episodes were played by more
+than one code version is flagged.
 """
 
 from __future__ import annotations
@@ -20,16 +23,43 @@ COLUMNS = ("Success", "%PS", "%FM", "#PL", "ACm", "CES")
 SAME_IN_EVERY_SETTING = ("sa", "sa-learned")  # policies whose team_override fixes the team
 ORDER = (
     "sa",
+    "sa-learned",
     "random",
     "heuristic-none",
     "heuristic-detection",
     "heuristic-broadcast",
     "heuristic-central",
+    "wo_know",
+    "wo_misobjdec",
+    "wo_rearecpre",
+    "wo_comm",
+    "wo_hierdec",
+    "condcomm",
+    "cmprcomm",
+    "intencomm",
     "hangrcom",
+    "broadcomm",
+    "centralcomm",
     "expert",
 )
+ABLATIONS = {
+    "wo_know": "Ours w/o Know.",
+    "wo_misobjdec": "Ours w/o MisObjDec.",
+    "wo_rearecpre": "Ours w/o ReaRecPre.",
+    "wo_comm": "Ours w/o Comm.",
+    "wo_hierdec": "Ours w/o HierDec.",
+}
 # Our learned rows and the paper's row of the same method, shown one under the other.
-PAPER_ROW = {"hangrcom": "Ours"}
+PAPER_ROW = {
+    "hangrcom": "Ours",
+    "sa-learned": "SA",
+    "condcomm": "CondComm.",
+    "cmprcomm": "CmprComm.",
+    "intencomm": "IntenComm.",
+    "broadcomm": "BroadComm.",
+    "centralcomm": "CentralComm.",
+    **ABLATIONS,
+}
 
 
 def paper_reference() -> dict:
@@ -58,9 +88,12 @@ def collect(root: Path) -> dict[str, dict[str, dict]]:
 
 # Where our count differs from the paper's, said next to the figure.
 ACM_NOTES = {
-    "central": "ACm counts the uploads to the central node and the assignments it sends back "
-    "(410 + 6 values per agent and step); the paper gives CentralComm. the broadcast figure "
-    "(820 in Setting I, 1230 in II).",
+    "heuristic-central": "ACm counts the uploads to the central node and the assignments it "
+    "sends back (410 + 6 values per agent and step); the paper gives CentralComm. the broadcast "
+    "figure (820 in Setting I, 1230 in II).",
+    "centralcomm": "ACm counts the uploads to the central node and the assignments it sends "
+    "back (410 + 64 values per agent and step); the paper gives CentralComm. the broadcast "
+    "figure (820 in Setting I, 1230 in II).",
 }
 
 
@@ -75,6 +108,15 @@ def _interval(m: dict, column: str) -> str:
     return f" [{ci[0]:.3f}, {ci[1]:.3f}]" if ci else ""
 
 
+def learned(summary: dict) -> bool:
+    return str(summary.get("perception", "")).startswith("learned")
+
+
+def sa_baseline(summary: dict, runs: dict[str, dict]) -> dict | None:
+    """The SA run a row's CES is measured against: learned rows against the learned SA."""
+    return runs.get("sa-learned") if learned(summary) else runs.get("sa")
+
+
 def _our_row(summary: dict, sa: dict | None) -> list[str]:
     cells = []
     for column in COLUMNS:
@@ -82,27 +124,32 @@ def _our_row(summary: dict, sa: dict | None) -> list[str]:
             m = summary["metrics"][split]
             if column == "CES":
                 v = None
-                if sa is not None and m["ACm"] and summary["policy"] != "sa":
+                if sa is not None and m["ACm"] and summary["policy"] != sa["policy"]:
                     v = ces(m["Success"], sa["metrics"][split]["Success"] or 0.0, m["ACm"])
-            elif column == "ACm" and summary["policy"] == "sa":
+            elif column == "ACm" and summary["policy"] in SAME_IN_EVERY_SETTING:
                 v = None  # one agent: nobody to talk to
             else:
                 v = m[column]
             cell = _fmt(v, column)
             if column == "Success" and v is not None:
                 cell += _interval(m, column)
-            if column == "ACm" and summary.get("communication") in ACM_NOTES and v is not None:
+            if column == "ACm" and summary["policy"] in ACM_NOTES and v is not None:
                 cell += " †"
             cells.append(cell)
     return cells
 
 
-def table(setting: str, runs: dict[str, dict], reference: dict) -> str:
+def table(setting: str, runs: dict[str, dict], reference: dict, kind: str = "rows") -> str:
+    """Our runs of one kind (``rows``: methods, ``ablations``) in one setting, each learned row
+    followed by the paper's row of the same method, then the paper's rows left over."""
     head = "| Method | " + " | ".join(f"{c} {s}" for c in COLUMNS for s in SPLITS) + " |"
     lines = [head, "|---" * (1 + len(COLUMNS) * len(SPLITS)) + "|"]
-    sa = runs.get("sa")
     notes = []
-    for policy in sorted(runs, key=lambda p: (ORDER.index(p) if p in ORDER else 99, p)):
+    # the ablations' table also shows the full model, as the paper's does
+    mine = {p: s for p, s in runs.items() if (p in ABLATIONS) == (kind == "ablations")}
+    if kind == "ablations" and "hangrcom" in runs:
+        mine["hangrcom"] = runs["hangrcom"]
+    for policy in sorted(mine, key=lambda p: (ORDER.index(p) if p in ORDER else 99, p)):
         s = runs[policy]
         tag = " (privileged)" if s.get("privileged") else ""
         if s.get("shared_from"):
@@ -110,22 +157,23 @@ def table(setting: str, runs: dict[str, dict], reference: dict) -> str:
         if len(s.get("code_versions", [])) > 1:
             tag += " ‡"
             notes.append(f"‡ {policy}: episodes played by code versions {s['code_versions']}.")
-        if s.get("communication") in ACM_NOTES:
-            notes.append(f"† {policy}: {ACM_NOTES[s['communication']]}")
-        lines.append(f"| **{policy}**{tag} | " + " | ".join(_our_row(s, sa)) + " |")
-        if policy in PAPER_ROW:
-            lines.append(_paper_row(PAPER_ROW[policy], reference, setting))
-    paired = {PAPER_ROW[p] for p in runs if p in PAPER_ROW}
-    for name in reference["rows"].get(setting, {}):
+        if policy in ACM_NOTES:
+            notes.append(f"† {policy}: {ACM_NOTES[policy]}")
+        row = _our_row(s, sa_baseline(s, runs))
+        lines.append(f"| **{policy}**{tag} | " + " | ".join(row) + " |")
+        if policy in PAPER_ROW and PAPER_ROW[policy] in reference.get(kind, {}).get(setting, {}):
+            lines.append(_paper_row(PAPER_ROW[policy], reference, setting, kind))
+    paired = {PAPER_ROW[p] for p in mine if p in PAPER_ROW}
+    for name in reference.get(kind, {}).get(setting, {}):
         if name not in paired:
-            lines.append(_paper_row(name, reference, setting))
+            lines.append(_paper_row(name, reference, setting, kind))
     if notes:
         lines += [""] + [f"{n}  " for n in notes]
     return "\n".join(lines)
 
 
-def _paper_row(name: str, reference: dict, setting: str) -> str:
-    values = reference["rows"][setting][name]
+def _paper_row(name: str, reference: dict, setting: str, kind: str = "rows") -> str:
+    values = reference[kind][setting][name]
     cells = [_fmt(v, COLUMNS[i // 3]) for i, v in enumerate(values)]
     return f"| {name} *(paper)* | " + " | ".join(cells) + " |"
 
@@ -146,6 +194,23 @@ def details(runs: dict[str, dict]) -> str:
             f"{s['episode_seconds_mean']} |"
         )
     return "\n".join(lines)
+
+
+def pareto_front(runs: dict[str, dict]) -> list[tuple[float, float]]:
+    """(ACm, Success) of the runs no other run beats on both (less ACm, more Success), by
+    increasing ACm. Privileged runs are left out: they do not communicate to know."""
+    points = sorted(
+        (s["metrics"]["All"]["ACm"] or 0.0, s["metrics"]["All"]["Success"] or 0.0)
+        for s in runs.values()
+        if not s.get("privileged")
+    )
+    front: list[tuple[float, float]] = []
+    for acm, success in points:
+        if not front or success > front[-1][1]:
+            if front and front[-1][0] == acm:
+                front.pop()
+            front.append((acm, success))
+    return front
 
 
 def plot(runs_by_setting: dict[str, dict[str, dict]], reference: dict, out: Path) -> Path:
@@ -189,6 +254,11 @@ def plot(runs_by_setting: dict[str, dict[str, dict]], reference: dict, out: Path
                 fontsize=7,
                 color="grey",
             )
+        front = pareto_front(runs_by_setting.get(setting, {}))
+        if len(front) > 1:
+            ax.step([x for x, _ in front], [y for _, y in front], where="post", color="tab:red",
+                    alpha=0.6, zorder=1, label="Pareto front (ours)")  # fmt: skip
+            ax.legend(loc="upper right", fontsize=8)
         ax.set(
             xlabel="ACm: values received per agent per step",
             ylabel="Success (All)",
@@ -220,8 +290,16 @@ def write_leaderboard(root: Path = Path("eval")) -> Path:
         "![success against communication](leaderboard.png)",
         "",
     ]
+    numbers = {"I": ("3", "5"), "II": ("4", "6")}
     for setting in sorted(set(runs) | set(reference["rows"])):
-        parts += [f"## Setting {setting}", "", table(setting, runs.get(setting, {}), reference), ""]
+        methods, ablations = numbers.get(setting, ("-", "-"))
+        ours = runs.get(setting, {})
+        parts += [f"## Setting {setting}", "",
+                  f"Methods (the paper's Table {methods}):", "",
+                  table(setting, ours, reference, "rows"), ""]  # fmt: skip
+        if any(p in ABLATIONS for p in ours) or reference.get("ablations", {}).get(setting):
+            parts += [f"Ablations (the paper's Table {ablations}):", "",
+                      table(setting, ours, reference, "ablations"), ""]  # fmt: skip
         if runs.get(setting):
             parts += ["Runs:", "", details(runs[setting]), ""]
     out = root / "LEADERBOARD.md"
