@@ -22,11 +22,10 @@ from typing import ClassVar
 import numpy as np
 import torch
 
-from maniskill_tidy.envs.actions import MIN_PIXELS, REACH, Action, AgentState, Targeted
+from maniskill_tidy.envs.actions import Action, Targeted
 from maniskill_tidy.knowledge import ROOM_TYPES, load_catalog
 from maniskill_tidy.models.communication import TASK
 from maniskill_tidy.models.decision import crop_goal, crop_layout
-from maniskill_tidy.perception.frame_inputs import FrameInputs, FrameReader
 from maniskill_tidy.policies.base import (
     EXPLORE,
     OPERATIONS,
@@ -41,16 +40,14 @@ from maniskill_tidy.policies.base import (
     Team,
 )
 from maniskill_tidy.policies.channel import Message, Outbox
-from maniskill_tidy.policies.executor import SubGoalExecutor, goal_cell, relative
+from maniskill_tidy.policies.executor import goal_cell, relative
 from maniskill_tidy.policies.handshake_exchange import HandshakeExchange
 from maniskill_tidy.policies.message_exchange import LearnedCentral, MessageExchange
-from maniskill_tidy.policies.navigation import GridPlanner
+from maniskill_tidy.policies.perceiving import PerceivingAgent
 from maniskill_tidy.tasks.teams import SETTINGS
 
 REPO = Path(__file__).resolve().parents[2]
 COMMIT_STEPS = 4  # env steps a sub-goal is pursued before a new prediction replaces it
-MISPLACED = 0.5  # the detector's probability above which an object in reach is picked up
-TOP_PUT = 3  # receptacle types (F_a's likeliest) an object may be put down on
 DEFAULT_CONFIG = Path("agents/hangrcom.yaml")
 ROUNDS = {"hangrcom": 3}  # communication rounds per step; the baselines send once
 
@@ -105,12 +102,12 @@ def task_indices(logits: dict[str, torch.Tensor]) -> torch.Tensor:
     return torch.tensor(best)
 
 
-class LearnedAgent(Agent):
+class LearnedAgent(PerceivingAgent):
     def __init__(self, name: str, public: PublicInfo, outbox: Outbox, team: LearnedTeam) -> None:
-        super().__init__(name, public, outbox)
-        model, self.perception = team.models(public.capabilities)
-        self.i = public.agents.index(name)
-        self.decision = model.agents[self.i]
+        model, perception = team.models(public.capabilities)
+        i = public.agents.index(name)
+        self.decision = model.agents[i]
+        super().__init__(name, public, outbox, perception, model.cfg.misplaced_detector)
         self.scheme = model.cfg.communication
         self.exchange: HandshakeExchange | MessageExchange | None = None
         if self.scheme == "hangrcom":
@@ -122,54 +119,21 @@ class LearnedAgent(Agent):
                 name, outbox, self.decision.comm, model.cfg.value, model.cfg.inter
             )
         self.prev_task = torch.full((4,), -1)  # the sub-task it pursued last step (indices)
-        self.reader = FrameReader(public.house, public.instances)
-        self.planner = GridPlanner(public.house)
-        rng = np.random.default_rng([public.seed, self.i, 11])
-        self.executor = SubGoalExecutor(self.planner, rng)
-        self.capability = public.capability(name)
-        self.state = AgentState(name, self.capability, (0, 0), 0)
         self.lstm: tuple = (None, None, None)  # F_s, F_a, F_g
-        self.furniture = public.house.furniture_by_id()
-        self.t = 0
         self._label: Label | None = None
         self._trace: dict = {}
-        self._last_op: Action | None = None
         self.commit: tuple | None = None  # (cell, rotation, ope, stop, subtask, since step)
         acting = team.config.acting()
         self.ope_threshold = acting.ope_threshold
-        self.picked_from = -1  # receptacle type the held object was picked up from
         self.sampler = (
             np.random.default_rng([public.seed, self.i, 13]) if acting.sample_subgoal else None
         )
 
     # ------------------------------------------------------------------ perception
     def observe(self, view: AgentView) -> None:
-        o, s = view.obs, self.state
-        self.t = view.step
-        s.cell = self.public.house.navgrid.cell_of(float(o["pose"][0]), float(o["pose"][1]))
-        s.rotation = int(round(float(o["pose"][2]))) % 360
-        self.frame = f = self.reader.read(o)
-        s.horizon = int(f.pose[3])
-        s.held = self.public.instances[int(o["held"])].id if int(o["held"]) else None
-        if view.failed:
-            self.executor.failed(s, view.failed, self.t)
-        self.failed = bool(view.failed)
-        self.seg = np.asarray(o["segmentation"])
-        feats = self.perception.step_features(
-            torch.from_numpy(f.rgb[None]), torch.from_numpy(f.seen[None]),
-            torch.from_numpy(f.crop[None]), torch.zeros(len(f.det_type), dtype=torch.long),
-            torch.from_numpy(f.det_type), torch.from_numpy(f.det_rest),
-            torch.from_numpy(f.det_numeric),
-        )  # fmt: skip
-        self.p_detections = feats["p_detections"].numpy()
-        x = {k: feats[k][None] for k in ("sv", "sm", "fd", "fp", "mis", "det")}
-        x.update(
-            va=torch.tensor([[self.capability]], dtype=torch.float32),
-            pose=torch.from_numpy(f.pose)[None, None],
-            held=torch.tensor([[f.held]]),
-            failed=torch.tensor([[float(self.failed)]]),
-            prev_task=self.prev_task[None, None],
-        )
+        x = self.perceive(view)
+        x["prev_task"] = self.prev_task[None, None]
+        f = self.frame
         if self.decision.cfg.layout:
             x["layout"] = torch.from_numpy(crop_layout(f.crop))[None, None]
         if self.decision.cfg.goal_map:
@@ -268,59 +232,6 @@ class LearnedAgent(Agent):
             if op is not None:
                 return op
         return Action.RotateLeft  # unreachable: the navigation actions are always possible
-
-    def _operation(self, ope: str, subtask: SubTask) -> Action | Targeted | None:
-        """``ope`` on what is in view, or None when it cannot succeed from here."""
-        # an operation that just failed here: look elsewhere before trying it again
-        retry = self.failed and self._last_op in (Action.PickUp, Action.PutDown)
-        if not self.capability[1] or retry:
-            return None
-        held = self.state.held is not None
-        if ope == "PickUp" and not held:
-            return self._pick(subtask)
-        if ope == "PutDown" and held:
-            return self._put(subtask)
-        if ope == "Drop" and held:
-            return Action.Drop
-        return None
-
-    def _pick(self, subtask: SubTask) -> Targeted | None:
-        """The detected object in reach of the predicted type (else the likeliest misplaced),
-        if the misplaced-object detector finds it misplaced (p >= MISPLACED)."""
-        f: FrameInputs = self.frame
-        here = np.asarray(self.public.house.navgrid.center(*self.state.cell))
-        # without the detector (its ablation) any object in reach, the predicted type first
-        gate = MISPLACED if self.decision.cfg.misplaced_detector else -1.0
-        near = [i for i in range(len(f.det_object))
-                if np.hypot(*(f.det_position[i, :2] - here)) <= REACH
-                and self.p_detections[i] >= gate]  # fmt: skip
-        if not near:
-            return None  # nothing misplaced in reach: not worth a failed action
-        kind = load_catalog().categories
-        same = [i for i in near if kind[f.det_type[i]] == subtask.object_type]
-        best = max(same or near, key=lambda i: (self.p_detections[i] if gate > 0 else 0, -i))
-        self.picked_from = int(f.det_rest[best])
-        return Targeted(Action.PickUp, f.det_object[best])
-
-    def _put(self, subtask: SubTask) -> Targeted | None:
-        """The visible surface whose receptacle type F_a finds likeliest, among its TOP_PUT
-        likeliest types and not the type the object was picked up from; None if none is in
-        view (the object is carried on)."""
-        order = np.argsort(-self.p_receptacle)
-        likely = [int(r) for r in order[:TOP_PUT] if int(r) != self.picked_from]
-        rank = {load_catalog().receptacles[r]: k for k, r in enumerate(likely)}
-        ids, counts = np.unique(self.seg, return_counts=True)
-        best: tuple[int, str] | None = None
-        for sid, n in zip(ids, counts, strict=True):
-            inst = self.public.instances.get(int(sid))
-            if inst is None or inst.kind != "furniture" or n < MIN_PIXELS:
-                continue
-            f = self.furniture.get(inst.id.split("/")[0])
-            for surface in f.surfaces if f is not None else []:
-                k = rank.get(surface.receptacle_type)
-                if k is not None and (best is None or k < best[0]):
-                    best = (k, f"{f.id}/{surface.name}")
-        return Targeted(Action.PutDown, best[1]) if best is not None else None
 
     def label(self) -> Label | None:
         return self._label
