@@ -131,6 +131,16 @@ def _demos(args: argparse.Namespace) -> int:
 
 
 def _train(args: argparse.Namespace) -> int:
+    from maniskill_tidy.training.qmix_trainer import is_qmix_config, train_qmix
+
+    if is_qmix_config(Path(args.what)):
+        card = train_qmix(Path(args.what), args.setting)
+        print(
+            f"{card['name']} Setting {args.setting}: {card['episodes']} episodes, "
+            f"{card['env_steps']} env steps in {card['train_seconds']:.0f} s; val success "
+            f"{card['val'].get('success', float('nan')):.2f}"
+        )
+        return 0
     if args.what != "perception":
         from maniskill_tidy.training.decision_trainer import train_decision
 

@@ -128,7 +128,8 @@ class PerceptionModel(nn.Module):
         """What the decision modules read of B frames (frozen): sv, sm, and fd, fp of the
         detection the detector finds most likely misplaced (zeros without one), its
         probability ``mis`` and whether there was a detection (``det``); ``p_detections``
-        holds every detection's probability of being misplaced.
+        holds every detection's probability of being misplaced, ``p_receptacles`` (D, P) the
+        reasonable-receptacle predictor's probability of each receptacle type for it.
 
         ``rgb`` (B, 64, 64, 3) uint8, ``seen`` (B, K), ``crop`` (B, G, G, K + 2) 0/1; the
         detections are flat, ``det_row`` naming each one's frame."""
@@ -137,6 +138,7 @@ class PerceptionModel(nn.Module):
         b, d = len(sv), self.cfg.dim
         fd, fp = torch.zeros(b, d), torch.zeros(b, d)
         mis, det, p = torch.zeros(b), torch.zeros(b), torch.zeros(len(det_row))
+        receptacles = torch.zeros(len(det_row), self.cfg.receptacles)
         if len(det_row):
             sr = self.sr(seen[det_row], sv[det_row])
             r = self.reason(sv[det_row], sr, det_type, det_rest, det_numeric)
@@ -149,5 +151,6 @@ class PerceptionModel(nn.Module):
             has = first < len(p)
             fd[has], fp[has] = r.fd[first[has]], r.fp[first[has]]
             mis[has], det[has] = p[first[has]], 1.0
-        out.update(fd=fd, fp=fp, mis=mis, det=det, p_detections=p)
+            receptacles = torch.sigmoid(r.receptacle)
+        out.update(fd=fd, fp=fp, mis=mis, det=det, p_detections=p, p_receptacles=receptacles)
         return out

@@ -13,6 +13,7 @@ from maniskill_tidy.policies.heuristic import (
     SingleAgent,
 )
 from maniskill_tidy.policies.learned import LearnedTeam, learned_team_class
+from maniskill_tidy.policies.qmix_team import QmixTeam
 from maniskill_tidy.policies.random_team import RandomTeam
 
 POLICIES: dict[str, type[AnyTeam]] = {
@@ -26,6 +27,7 @@ POLICIES: dict[str, type[AnyTeam]] = {
         BroadcastTeam,
         CentralTeam,
         LearnedTeam,
+        QmixTeam,
     )
 }
 

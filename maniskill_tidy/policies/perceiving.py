@@ -66,6 +66,7 @@ class PerceivingAgent(Agent):
             torch.from_numpy(f.det_numeric),
         )  # fmt: skip
         self.p_detections = feats["p_detections"].numpy()
+        self.p_receptacles = feats["p_receptacles"].numpy()
         x = {k: feats[k][None] for k in ("sv", "sm", "fd", "fp", "mis", "det")}
         x.update(
             va=torch.tensor([[self.capability]], dtype=torch.float32),
@@ -106,6 +107,7 @@ class PerceivingAgent(Agent):
         same = [i for i in near if kind[f.det_type[i]] == subtask.object_type]
         best = max(same or near, key=lambda i: (self.p_detections[i] if gate > 0 else 0, -i))
         self.picked_from = int(f.det_rest[best])
+        self.picked_receptacles = self.p_receptacles[best]  # the predictor's, for this object
         return Targeted(Action.PickUp, f.det_object[best])
 
     def _put(self, subtask: SubTask) -> Targeted | None:
