@@ -322,7 +322,7 @@ class Legal:
                 self.actions += 1
 
 
-@pytest.mark.parametrize("setting", ["I"])
+@pytest.mark.parametrize("setting", ["I", "II"])
 def test_the_shipped_hangrcom_team_loads_and_plays_a_short_episode(setting):
     from maniskill_tidy.eval.episode import play_episode
     from maniskill_tidy.eval.runner import RunConfig, make_env
