@@ -85,6 +85,11 @@ def test_qmix_trains_seeded_resumes_and_writes_its_card(small_dataset, tmp_path)
 
 
 def test_a_bad_qmix_config_is_refused_in_one_line(tmp_path):
+    from maniskill_tidy.policies import team_class
+    from maniskill_tidy.policies.qmix_team import QmixTeam
+
+    shipped = team_class("agents/qmix.yaml")  # eval --policy agents/qmix.yaml
+    assert issubclass(shipped, QmixTeam) and shipped.folder == Path("agents/qmix")
     bad = tmp_path / "q.yaml"
     bad.write_text("trainer: qmix\nname: q\nout: o\nreward: {placed: 1}\n")
     with pytest.raises(ValueError, match="reward needs placed, picked and step"):

@@ -3,6 +3,8 @@ cameras with the communication patterns of the paper's baselines, and the learne
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from maniskill_tidy.policies.base import AnyTeam
 from maniskill_tidy.policies.expert import ExpertTeam
 from maniskill_tidy.policies.heuristic import (
@@ -37,6 +39,13 @@ def team_class(policy: str) -> type[AnyTeam]:
     if policy in POLICIES:
         return POLICIES[policy]
     if str(policy).endswith((".yaml", ".yml")):
+        from maniskill_tidy.policies.learned import resolve
+        from maniskill_tidy.training.qmix_trainer import QmixConfig, is_qmix_config
+
+        if is_qmix_config(resolve(policy)):
+            cfg = QmixConfig.load(resolve(policy))
+            return type(f"QmixTeam_{cfg.name}", (QmixTeam,), {"name": cfg.name,
+                                                             "folder": Path(cfg.out)})  # fmt: skip
         return learned_team_class(policy)
     raise ValueError(
         f"unknown policy {policy!r}; choose one of {sorted(POLICIES)} or an agent config "
