@@ -50,3 +50,21 @@ def learned_config(tmp_path_factory) -> Path:
 def seeded_config():
     """``seeded_config(root, name, model_yaml, settings)``: see :func:`_seeded_config`."""
     return _seeded_config
+
+
+@pytest.fixture(scope="session")
+def qmix_config(tmp_path_factory) -> Path:
+    """A QMIX config whose Q-networks (Settings I and II) are freshly initialised from a seed."""
+    import torch
+
+    from maniskill_tidy.models.qmix import QmixTeamModel
+    from maniskill_tidy.training.qmix_trainer import save_qmix
+
+    root = tmp_path_factory.mktemp("qmix")
+    config = root / "qmix.yaml"
+    config.write_text(f"trainer: qmix\nname: qmix\nout: {root / 'qmix'}\n")
+    for setting, agents in (("I", 3), ("II", 4)):
+        torch.manual_seed(0)
+        save_qmix(QmixTeamModel(agents), root / "qmix" / f"setting_{setting}",
+                  {"perception": "agents/perception/knowledge"})  # fmt: skip
+    return config

@@ -61,10 +61,11 @@ def test_td_learns_the_return_of_a_one_step_episode_and_pads_to_the_longest():
 def test_qmix_trains_seeded_resumes_and_writes_its_card(small_dataset, tmp_path):
     def config(name: str, episodes: int) -> Path:
         path = tmp_path / f"{name}.yaml"
+        val = 1 if name == "a" else 0  # val episodes are not part of training: checked once
         path.write_text(
             f"trainer: qmix\nname: {name}\nout: {tmp_path / name}\ndataset: {small_dataset}\n"
             f"work: {tmp_path / 'work' / name}\nepisodes: {episodes}\nmax_steps: 6\nbatch: 2\n"
-            "buffer: 2\nupdates: 1\ntarget_every: 1\nval_episodes: 1\n"
+            f"buffer: 2\nupdates: 1\ntarget_every: 1\nval_episodes: {val}\n"
             "epsilon: {start: 1.0, end: 0.0, episodes: 2}\n"
         )
         return path

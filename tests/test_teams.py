@@ -161,11 +161,12 @@ def _mutables(root, skip: set[int]) -> dict[int, object]:
 
 @pytest.mark.parametrize("policy", sorted(p for p, cls in POLICIES.items() if not cls.privileged))
 def test_agents_of_a_team_share_code_and_public_data_not_state(
-    policy, small_house_public, learned_config
+    policy, small_house_public, learned_config, qmix_config
 ):
     public = small_house_public
     channel = Channel(public.agents, central=True)
-    team = make_team(str(learned_config) if policy == "hangrcom" else policy)
+    seeded = {"hangrcom": str(learned_config), "qmix": str(qmix_config)}
+    team = make_team(seeded.get(policy, policy))
     agents = [team.make_agent(n, public, Outbox(channel, n)) for n in public.agents]
     shared_ok: set[int] = set()
     for allowed in (public, channel, load_placement(), load_catalog()):
@@ -222,11 +223,12 @@ EPISODE = 10
 
 
 @pytest.fixture(scope="module")
-def played(learned_config):
+def played(learned_config, qmix_config):
     out = {}
     envs = {}
+    seeded = {"hangrcom": str(learned_config), "qmix": str(qmix_config)}
     for policy in sorted(POLICIES):
-        team = make_team(str(learned_config) if policy == "hangrcom" else policy)
+        team = make_team(seeded.get(policy, policy))
         cfg = RunConfig(policy, "I", "test", None, "standard")
         key = (tuple(map(tuple, team.team_override or [])), cfg.env_kwargs(False)["obs_mode"])
         if key not in envs:
