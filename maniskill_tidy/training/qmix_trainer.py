@@ -180,8 +180,9 @@ def load_qmix(folder: Path) -> tuple[QmixTeamModel, dict]:
     return model.eval(), saved
 
 
-def train_qmix(config: Path, setting: str, progress: bool = True) -> dict:
-    """Train (resumable), then write the model, its card and learning curve; returns the card."""
+def train_qmix(config: Path, setting: str, progress: bool = True, env=None) -> dict:
+    """Train (resumable), then write the model, its card and learning curve; returns the card.
+    ``env``: a train-split env of the setting to reuse (made from the config when None)."""
     from maniskill_tidy.eval.episode import play_episode
     from maniskill_tidy.eval.runner import RunConfig, code_version, make_env
     from maniskill_tidy.policies.qmix_team import QmixTeam, Steps
@@ -211,7 +212,9 @@ def train_qmix(config: Path, setting: str, progress: bool = True) -> dict:
             torch.set_rng_state(saved["torch_rng"])
             state = saved["state"]
     perception = load_agent(Path(cfg.perception))
-    env = make_env(RunConfig("qmix", setting, "train", cfg.dataset))
+    own_env = env is None
+    if own_env:
+        env = make_env(RunConfig("qmix", setting, "train", cfg.dataset))
     env.unwrapped.max_steps = cfg.max_steps
     n_train = len(env.unwrapped.episodes.episodes)
     buffer: dict[int, dict] = {}
@@ -266,7 +269,8 @@ def train_qmix(config: Path, setting: str, progress: bool = True) -> dict:
                             eps=f"{cfg.exploration(k):.2f}")  # fmt: skip
     finally:
         bar.close()
-        env.close()
+        if own_env:
+            env.close()
     model.eval()
     folder = Path(cfg.out) / f"setting_{setting}"
     save_qmix(model, folder, {"name": cfg.name, "perception": cfg.perception})
