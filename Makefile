@@ -60,7 +60,7 @@ train: setup
 	for s in $(TRAIN_SETTINGS); do $(PY) -m maniskill_tidy.cli train agents/hangrcom.yaml --setting $$s || exit 1; done
 
 # The paper's baselines and ablations (agents/*.yaml besides hangrcom.yaml): each trains on the
-# same demonstrations and features as hangrcom (built if missing), about 11 min per setting.
+# same demonstrations and features as hangrcom (built if missing), hangrcom took 11 min (I) and 25 min (II).
 VARIANTS ?= broadcomm condcomm cmprcomm intencomm centralcomm wo_comm wo_know wo_misobjdec wo_rearecpre wo_hierdec
 train-all: setup
 	for v in $(VARIANTS); do for s in $(TRAIN_SETTINGS); do \
