@@ -107,13 +107,15 @@ def test_show_house_draws_a_png(tmp_path):
     assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 20_000
 
 
-def test_generation_rate_is_at_least_10_houses_per_second():
-    """Per second of this process's CPU time: wall time fails whenever other jobs share the
-    cores (``make bench`` reports the wall-clock rate)."""
+def test_generation_makes_at_least_10_houses_per_second_on_2_cores():
+    """The spec is 10 houses/s on 2 cores, i.e. 5 per core. Measured in this process's CPU
+    time: wall time fails whenever other jobs share the cores (``make bench`` reports the
+    wall-clock rate with 1 and 2 workers)."""
     import time
 
+    generate_house(99, 0)  # imports and caches out of the measurement
     start = time.process_time()
-    for i in range(20):
+    for i in range(1, 21):
         generate_house(99, i)
-    rate = 20 / (time.process_time() - start)
-    assert rate > 10, f"{rate:.1f} houses per CPU second"
+    per_core = 20 / (time.process_time() - start)
+    assert 2 * per_core > 10, f"{2 * per_core:.1f} houses per second on 2 cores"

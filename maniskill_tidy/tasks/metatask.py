@@ -24,7 +24,7 @@ object's centre within PickUp's reach of a free cell.
 from __future__ import annotations
 
 import copy
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -78,7 +78,7 @@ class MetaTask:
     def to_dict(self) -> dict:
         from maniskill_tidy.houses.schema import _rounded
 
-        return _rounded(asdict(self))
+        return _rounded(self)
 
     @classmethod
     def from_dict(cls, d: dict) -> MetaTask:
@@ -191,7 +191,9 @@ def generate_meta_task(
     """Meta-task ``task_index`` of a house, meant to be Single or Cross (``single``); its
     randomness depends only on the arguments."""
     rng = house_rng(seed, house_index, stream=1 + task_index)
-    work = copy.deepcopy(house)
+    # Only objects move: copy them and share the rest (a deep copy of the house per task
+    # cost more than generating the house).
+    work = replace(house, objects=[replace(o) for o in house.objects])
     frame, free = house_grid(work)
     placer = ObjectPlacer(work, frame, free, rng)
     free_xy = np.stack([frame.X[free], frame.Y[free]], axis=1)
