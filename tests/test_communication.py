@@ -27,6 +27,7 @@ def _inputs(rng: np.random.Generator, n: int = N, mis=None) -> list[dict[str, to
     """One step's inputs (1, 1, ·) of n agents."""
     out = []
     for i in range(n):
+
         def f(*shape):
             return torch.from_numpy(rng.normal(size=(1, 1, *shape)).astype(np.float32))
 

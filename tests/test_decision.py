@@ -338,3 +338,34 @@ def test_the_shipped_hangrcom_team_loads_and_plays_a_short_episode(setting):
         env.close()
     assert record.length == 12 or (record.length < 12 and stopped)
     assert legal.actions >= record.length and record.comm > 0
+
+
+def test_the_oracle_variant_alone_is_given_the_misplaced_objects_and_fetches_one(tmp_path):
+    """SA(Oracle)'s one difference: the misplaced objects' locations at reset. Its manipulator
+    walks to the nearest and picks it up, and its rows are marked privileged."""
+    from maniskill_tidy.eval.episode import play_episode
+    from maniskill_tidy.eval.runner import RunConfig, make_env
+    from maniskill_tidy.policies.base import PublicInfo
+    from maniskill_tidy.policies.learned import learned_team_class
+
+    config = tmp_path / "oracle.yaml"
+    config.write_text(
+        f"base: {Path('agents/hangrcom.yaml').resolve()}\n"
+        "name: oracle-test\nact: {oracle: true}\n"
+    )
+    oracle = learned_team_class(config)
+    assert oracle.oracle and oracle.privileged
+    assert not learned_team_class("agents/hangrcom.yaml").privileged
+
+    env = make_env(RunConfig("hangrcom", "I", "test", None, 1))
+    try:
+        env.reset(seed=0, options={"episode": 20})  # a manipulator starts a step from a view
+        u = env.unwrapped
+        assert PublicInfo.of(u, 0).oracle_misplaced == {}
+        given = PublicInfo.of(u, 0, oracle=True).oracle_misplaced
+        assert set(given) == set(u.misplaced)
+        u.max_steps = 40
+        record = play_episode(env, oracle(), 20, 0, [Legal()])
+    finally:
+        env.close()
+    assert record.found >= 1

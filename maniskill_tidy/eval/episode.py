@@ -52,7 +52,7 @@ class Execution:
 
     def __init__(self, team: AnyTeam, env: Any, seed: int) -> None:
         self.team, self.env = team, env
-        public = PublicInfo.of(env, seed)
+        public = PublicInfo.of(env, seed, oracle=getattr(team, "oracle", False))
         self.channel = Channel(public.agents, central=team.central)
         self.agents: dict[str, Agent] = {}
         self.central_node = None

@@ -20,10 +20,12 @@ from pathlib import Path
 from maniskill_tidy.eval.metrics import SPLITS, ces
 
 COLUMNS = ("Success", "%PS", "%FM", "#PL", "ACm", "CES")
-SAME_IN_EVERY_SETTING = ("sa", "sa-learned")  # policies whose team_override fixes the team
+# policies whose team_override fixes the team
+SAME_IN_EVERY_SETTING = ("sa", "sa-learned", "sa-oracle")
 ORDER = (
     "sa",
     "sa-learned",
+    "sa-oracle",
     "random",
     "heuristic-none",
     "heuristic-detection",
@@ -53,6 +55,7 @@ ABLATIONS = {
 PAPER_ROW = {
     "hangrcom": "Ours",
     "sa-learned": "SA",
+    "sa-oracle": "SA(Oracle)",
     "condcomm": "CondComm.",
     "cmprcomm": "CmprComm.",
     "intencomm": "IntenComm.",

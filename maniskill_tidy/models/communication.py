@@ -168,8 +168,9 @@ def exchange(
         extras.append({**extra, "received": received})
     out = {"pairs": extras, "messages": msgs}
     if messengers[0].scheme == "cmpr":  # what the decoders should give back
-        out["sent_map"] = torch.stack([m.map_embedding(xn) for m, xn in zip(messengers, x,
-                                                                             strict=True)], -2)
+        out["sent_map"] = torch.stack(
+            [m.map_embedding(xn) for m, xn in zip(messengers, x, strict=True)], -2
+        )
     return torch.stack(inn, -2), torch.stack(inter, -2), out
 
 

@@ -59,9 +59,15 @@ class PublicInfo:
     # The segmentation's label table, id -> Instance(kind, type, id): with ground-truth
     # segmentation it stands in for a trained detector's class (and instance) output.
     instances: dict = dataclasses.field(default_factory=dict)
+    # Only for an oracle team (SA(Oracle)): misplaced object id -> its position (x, y, z).
+    oracle_misplaced: dict = dataclasses.field(default_factory=dict)
 
     @classmethod
-    def of(cls, env, seed: int) -> PublicInfo:
+    def of(cls, env, seed: int, oracle: bool = False) -> PublicInfo:
+        def centre(oid: str) -> tuple[float, ...]:  # where the simulator has it now
+            size = env.manipulation.sizes[oid]
+            return tuple(float(v) for v in env.hs.object_bottom(oid) + [0.0, 0.0, size[2] / 2])
+
         return cls(
             house=dataclasses.replace(env.house, objects=[]),
             agents=list(env.agent_names),
@@ -69,6 +75,7 @@ class PublicInfo:
             episode_id=env.episode.id,
             seed=seed,
             instances=dict(env.instances),
+            oracle_misplaced={oid: centre(oid) for oid in env.misplaced} if oracle else {},
         )
 
     def capability(self, name: str) -> Capability:
@@ -164,6 +171,9 @@ class Team(ABC):
     rounds: ClassVar[int] = 1  # communication rounds per step
     team_override: ClassVar[list | None] = None  # plays with its own team (SA: one manipulator)
     perception: ClassVar[str] = ""  # what stands in for the paper's perception, for the results
+    # Given the misplaced objects' locations at reset (``PublicInfo.oracle_misplaced``): the
+    # paper's SA(Oracle). Such a team reads the task, so its rows are privileged too.
+    oracle: ClassVar[bool] = False
 
     @abstractmethod
     def make_agent(self, name: str, public: PublicInfo, outbox: Outbox) -> Agent:

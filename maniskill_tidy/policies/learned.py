@@ -23,6 +23,7 @@ import numpy as np
 import torch
 
 from maniskill_tidy.envs.actions import Action, Targeted
+from maniskill_tidy.envs.robots import robot_kind
 from maniskill_tidy.knowledge import ROOM_TYPES, load_catalog
 from maniskill_tidy.models.communication import TASK
 from maniskill_tidy.models.decision import crop_goal, crop_layout
@@ -44,6 +45,8 @@ from maniskill_tidy.policies.executor import goal_cell, relative
 from maniskill_tidy.policies.handshake_exchange import HandshakeExchange
 from maniskill_tidy.policies.message_exchange import LearnedCentral, MessageExchange
 from maniskill_tidy.policies.perceiving import PerceivingAgent
+from maniskill_tidy.policies.viewpoints import viewpoints
+from maniskill_tidy.policies.walker import Leg, NoViewpoint, Walker
 from maniskill_tidy.tasks.teams import SETTINGS
 
 REPO = Path(__file__).resolve().parents[2]
@@ -128,10 +131,20 @@ class LearnedAgent(PerceivingAgent):
         self.sampler = (
             np.random.default_rng([public.seed, self.i, 13]) if acting.sample_subgoal else None
         )
+        # SA(Oracle): the misplaced objects still to pick up, and the walk to one of them
+        self.oracle = acting.oracle
+        self.targets = dict(public.oracle_misplaced)
+        self.types = {inst.id: inst.type for inst in public.instances.values()}
+        self.fetching: tuple[str, Leg] | None = None
+        self.walker = Walker(self.planner)
 
     # ------------------------------------------------------------------ perception
     def observe(self, view: AgentView) -> None:
         x = self.perceive(view)
+        if self.oracle:  # it knows which objects in view are misplaced
+            known = self.public.oracle_misplaced
+            self.p_detections = np.array([float(o in known) for o in self.frame.det_object])
+            self.targets.pop(self.state.held, None)
         x["prev_task"] = self.prev_task[None, None]
         f = self.frame
         if self.decision.cfg.layout:
@@ -182,9 +195,41 @@ class LearnedAgent(PerceivingAgent):
         ex = self.exchange
         if isinstance(ex, HandshakeExchange):
             self._trace = {"T": ex.T, "groups": ex.groups(), "links": ex.links()}
-        action = self._act(d)
+        action = (self._fetch() if self.oracle else None) or self._act(d)
         self._last_op = action.action if isinstance(action, Targeted) else action
         return action
+
+    def _fetch(self) -> Action | Targeted | None:
+        """SA(Oracle), with nothing in hand: walk to the nearest misplaced object still to pick
+        up (its location given) and pick it up; None when there is none left to fetch."""
+        s = self.state
+        if s.held is not None or not self.capability[1]:
+            return None
+        here = np.asarray(self.public.house.navgrid.center(*s.cell))
+        while self.targets:
+            if self.fetching is None:
+                oid = min(self.targets, key=lambda o: np.hypot(*(self.targets[o][:2] - here)))
+                height = robot_kind(self.capability).camera_height
+                spots = viewpoints(self.public.house, np.asarray(self.targets[oid]), height,
+                                   side_views=True)[:12]  # fmt: skip
+                self.fetching = (oid, Leg(spots))
+            oid, leg = self.fetching
+            if self.failed and self._last_op == Action.PickUp:
+                leg.give_up_goal()  # the pick failed from here: the next viewpoint
+            try:
+                move = self.walker.step(s, leg, set(), set())
+            except NoViewpoint:
+                self.targets.pop(oid)
+                self.fetching = None
+                continue
+            if move is not None:
+                return move
+            pick = self._pick(SubTask(PLACE, object_type=self.types.get(oid, "")))
+            if pick is not None:
+                return pick
+            leg.give_up_goal()  # not in view from here
+            return self.executor.look(s)
+        return None
 
     def _act(self, d: Decision) -> Action | Targeted:
         """Pursue the committed sub-goal (a new prediction is adopted once it is reached, or
@@ -300,5 +345,6 @@ def learned_team_class(config: str | Path) -> type[LearnedTeam]:
     scheme = cfg.decision().communication
     attrs = {"name": cfg.name, "config_file": resolve(config), "communication": scheme,
              "central": scheme == "central", "rounds": ROUNDS.get(scheme, 1),
-             "team_override": cfg.team}  # fmt: skip
+             "team_override": cfg.team, "oracle": cfg.acting().oracle,
+             "privileged": cfg.acting().oracle}  # fmt: skip
     return type(f"LearnedTeam_{cfg.name}", (LearnedTeam,), attrs)

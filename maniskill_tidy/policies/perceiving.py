@@ -129,4 +129,3 @@ class PerceivingAgent(Agent):
                 if k is not None and (best is None or k < best[0]):
                     best = (k, f"{f.id}/{surface.name}")
         return Targeted(Action.PutDown, best[1]) if best is not None else None
-

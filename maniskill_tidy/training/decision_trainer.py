@@ -84,6 +84,11 @@ class ActSettings:
     # argmax: the teacher's moves are spread over many cells, and the argmax of each axis
     # alone names one fixed cell that an agent walks to, or stays at, step after step.
     sample_subgoal: bool = False
+    # SA(Oracle) (paper Section 6.3): the misplaced objects' locations are given at reset. With
+    # nothing in hand the agent walks to the nearest one it has not picked up instead of
+    # exploring, and knows which objects in view are misplaced; the same trained model decides
+    # everything else. Its rows are marked privileged: it reads the task.
+    oracle: bool = False
 
 
 @dataclass(frozen=True)
@@ -656,8 +661,11 @@ COMMUNICATION = {
 
 def _method(decision: dict) -> str:
     """What the card's model is, in words."""
-    how = "Hierarchical decision" if decision.get("hierarchical", True) else (
-        "Direct low-level actions (w/o HierDec.)")
+    how = (
+        "Hierarchical decision"
+        if decision.get("hierarchical", True)
+        else ("Direct low-level actions (w/o HierDec.)")
+    )
     parts = [f"{how} with {COMMUNICATION[decision.get('communication', 'hangrcom')]}"]
     if not decision.get("misplaced_detector", True):
         parts.append("without the misplaced-object detector (w/o MisObjDec.)")
