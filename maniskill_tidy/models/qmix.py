@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import torch
 from torch import nn
-from torchrl.modules import QMixer
 
 from maniskill_tidy.envs.actions import Action
 from maniskill_tidy.models.decision import POSE, encode_pose
@@ -66,6 +65,8 @@ class QmixTeamModel(nn.Module):
         super().__init__()
         self.n, self.feature = agents, feature
         self.agents = nn.ModuleList(AgentQ(agents - 1, feature, hidden) for _ in range(agents))
+        from torchrl.modules import QMixer  # here: torchrl takes seconds to import
+
         self.mixer = QMixer((agents * SMALL,), mixing, agents, "cpu")
 
     def others(self, features: torch.Tensor, present: torch.Tensor, i: int) -> torch.Tensor:
