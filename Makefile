@@ -34,6 +34,9 @@ bench: setup
 # resumes if interrupted; rerunning skips finished episodes. SA plays one manipulator in every
 # setting, so its Setting I run stands for both. LEADERBOARD_SETTINGS=II runs one setting.
 DATA120 ?= data/tidy120
+# the learned rows: the shipped HanGrCom models; the variants once `make train-all` made theirs
+# (LEARNED="hangrcom agents/broadcomm.yaml ...")
+LEARNED ?= hangrcom
 LEADERBOARD_SETTINGS ?= I II
 EVAL = $(PY) -m maniskill_tidy.cli eval --split test --dataset $(DATA120) --workers 2
 leaderboard: setup
@@ -42,7 +45,7 @@ leaderboard: setup
 	  $(EVAL) --policy expert --setting $$s && $(EVAL) --policy random --setting $$s || exit 1; done
 	$(EVAL) --policy sa --setting I
 	for s in $(LEADERBOARD_SETTINGS); do \
-	  for p in heuristic-none heuristic-detection heuristic-broadcast heuristic-central; do \
+	  for p in heuristic-none heuristic-detection heuristic-broadcast heuristic-central $(LEARNED); do \
 	    $(EVAL) --policy $$p --setting $$s || exit 1; done; done
 	$(PY) -m maniskill_tidy.cli leaderboard
 
