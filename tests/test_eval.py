@@ -294,6 +294,34 @@ def test_ablations_get_their_own_table_and_learned_rows_their_own_sa(tmp_path):
     assert pareto_front(runs) == [(0.0, 0.25), (240.0, 0.5)]
 
 
+def test_the_papers_orderings_are_checked_on_our_learned_rows():
+    from maniskill_tidy.eval.leaderboard import orderings
+
+    runs = {
+        "sa-learned": _summary("sa-learned", [True] + [False] * 19, 0),
+        "hangrcom": _summary("hangrcom", [True, False] * 10, 240),
+        "centralcomm": _summary("centralcomm", [True, False] * 10, 474),
+        "condcomm": _summary("condcomm", [True, False, False, False] * 5, 400),
+        "cmprcomm": _summary("cmprcomm", [True, False, False, False] * 5, 220),
+        "wo_comm": _summary("wo_comm", [True, True, True, False] * 5, 0),  # beats Ours
+    }
+    found = {claim: (verdict, evidence) for claim, verdict, evidence in orderings(runs)}
+    assert found["SA < Ours"][0] == "holds"  # 0.05 against 0.5: the intervals do not meet
+    assert found["SA < Ours"][1].startswith("sa-learned 0.050 [")
+    assert found["Ours <= CentralComm."][0] == "holds"  # equal Success
+    assert found["Ours w/o Comm. < Ours"][0].startswith("fails")
+    assert found["Ours w/o Know. < Ours"] == ("not run", "missing wo_know")
+    ces_claim = "Ours has the best CES among the partial-communication methods"
+    assert found[ces_claim] == ("not run", "missing intencomm")
+    runs["intencomm"] = _summary("intencomm", [True, False, False, False] * 5, 20)
+    found = {claim: (verdict, evidence) for claim, verdict, evidence in orderings(runs)}
+    assert found[ces_claim][0] == "fails"  # IntenComm. sends 20: its CES beats Ours'
+    assert f"intencomm {ces(0.25, 0.05, 20.0):.1f}" in found[ces_claim][1]
+    runs["intencomm"] = _summary("intencomm", [False] * 20, 20)
+    found = {claim: (verdict, evidence) for claim, verdict, evidence in orderings(runs)}
+    assert found[ces_claim][0] == "holds"
+
+
 SA_CELLS = "0.1 0.2 0.15 0.3 0.4 0.35 0.5 0.6 0.55 100.0 200.0 150.0 - - - - - -"
 OURS_CELLS = (
     r"\textbf{0.121} 0.079 0.103 0.194 0.16 0.179 0.739 0.726 0.733 186.1 252.6 215.0 "

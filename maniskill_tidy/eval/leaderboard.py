@@ -216,6 +216,66 @@ def pareto_front(runs: dict[str, dict]) -> list[tuple[float, float]]:
     return front
 
 
+PARTIAL_COMMUNICATION = ("hangrcom", "condcomm", "cmprcomm", "intencomm")
+
+
+def _success(summary: dict) -> str:
+    m = summary["metrics"]["All"]
+    return f"{summary['policy']} {m['Success']:.3f}{_interval(m, 'Success')}"
+
+
+def _overlap(a: dict, b: dict) -> bool:
+    """Whether the two runs' 95 % Success intervals overlap (the order is then unresolved)."""
+    ia, ib = (s["metrics"]["All"].get("ci95", {}).get("Success") for s in (a, b))
+    return ia is None or ib is None or (ia[0] <= ib[1] and ib[0] <= ia[1])
+
+
+def _less(runs: dict[str, dict], low: str, high: str, strict: bool) -> tuple[str, str]:
+    if low not in runs or high not in runs:
+        missing = [p for p in (low, high) if p not in runs]
+        return "not run", "missing " + ", ".join(missing)
+    a, b = runs[low]["metrics"]["All"]["Success"], runs[high]["metrics"]["All"]["Success"]
+    verdict = "holds" if (a < b if strict else a <= b) else "fails"
+    if _overlap(runs[low], runs[high]) and a != b:
+        verdict += " (intervals overlap)"
+    return verdict, f"{_success(runs[low])} against {_success(runs[high])}"
+
+
+def orderings(runs: dict[str, dict]) -> list[tuple[str, str, str]]:
+    """The paper's orderings (Sections 6.3-6.5) checked on our learned rows of one setting:
+    (claim, verdict, evidence); Success compared by point estimate, with a word where the two
+    intervals overlap."""
+    out = [
+        ("SA < Ours", *_less(runs, "sa-learned", "hangrcom", strict=True)),
+        ("Ours <= CentralComm.", *_less(runs, "hangrcom", "centralcomm", strict=False)),
+    ]
+    missing = [p for p in (*PARTIAL_COMMUNICATION, "sa-learned") if p not in runs]
+    claim = "Ours has the best CES among the partial-communication methods"
+    if missing:
+        out.append((claim, "not run", "missing " + ", ".join(missing)))
+    else:
+        sa = runs["sa-learned"]["metrics"]["All"]["Success"] or 0.0
+        scores = {}
+        for p in PARTIAL_COMMUNICATION:
+            m = runs[p]["metrics"]["All"]
+            scores[p] = ces(m["Success"], sa, m["ACm"]) if m["ACm"] else None
+        best = max((p for p in scores if scores[p] is not None), key=lambda p: scores[p],
+                   default=None)  # fmt: skip
+        evidence = ", ".join(f"{p} {v:.1f}" if v is not None else f"{p} -"
+                             for p, v in scores.items())  # fmt: skip
+        out.append((claim, "holds" if best == "hangrcom" else "fails", "CES " + evidence))
+    for policy, name in ABLATIONS.items():
+        out.append((f"{name} < Ours", *_less(runs, policy, "hangrcom", strict=True)))
+    return out
+
+
+def orderings_table(runs: dict[str, dict]) -> str:
+    lines = ["| the paper's ordering | here | evidence (Success All [95 % interval]) |",
+             "|---|---|---|"]  # fmt: skip
+    lines += [f"| {c} | {v} | {e} |" for c, v, e in orderings(runs)]
+    return "\n".join(lines)
+
+
 def plot(runs_by_setting: dict[str, dict[str, dict]], reference: dict, out: Path) -> Path:
     import matplotlib.pyplot as plt
 
@@ -304,7 +364,9 @@ def write_leaderboard(root: Path = Path("eval")) -> Path:
             parts += [f"Ablations (the paper's Table {ablations}):", "",
                       table(setting, ours, reference, "ablations"), ""]  # fmt: skip
         if runs.get(setting):
-            parts += ["Runs:", "", details(runs[setting]), ""]
+            parts += ["The paper's orderings on our learned rows:", "",
+                      orderings_table(runs[setting]), "",
+                      "Runs:", "", details(runs[setting]), ""]  # fmt: skip
     out = root / "LEADERBOARD.md"
     write_atomic(out, "\n".join(parts).encode())
     plot(runs, reference, root / "leaderboard.png")
