@@ -122,3 +122,15 @@ def test_the_policies_command_lists_every_team():
     p = cli("policies")
     assert p.returncode == 0, p.stderr
     assert [line.split()[0] for line in p.stdout.splitlines()] == list(POLICIES)
+
+
+def test_eval_of_an_untrained_variant_names_the_training_command_and_writes_nothing(tmp_path):
+    config = tmp_path / "untrained.yaml"
+    config.write_text(
+        f"base: {Path('agents/hangrcom.yaml').resolve()}\nname: untrained\n"
+        f"out: {tmp_path / 'nowhere'}\n"
+    )
+    out = tmp_path / "run"
+    line = one_line_error(cli("eval", "--policy", str(config), "--out", str(out)), "not found")
+    assert f"maniskill-tidy train {config} --setting I" in line
+    assert not out.exists()

@@ -247,6 +247,9 @@ def evaluate(
 
     setting = getattr(team_cls, "team_override", None) or cfg.setting
     members = parse_team(setting)
+    missing = getattr(team_cls, "missing_model", lambda team: None)(members)
+    if missing:  # before the run folder is made: nothing half-written
+        raise FileNotFoundError(missing)
     # As the env does: the smallest setting that fits the team gives the starts (for SA, one
     # manipulator, that is Setting I's first start).
     episodes = EpisodeSet(cfg.dataset, cfg.split, cfg.task_type, None, members)

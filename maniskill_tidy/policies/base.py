@@ -179,6 +179,12 @@ class Team(ABC):
     def make_agent(self, name: str, public: PublicInfo, outbox: Outbox) -> Agent:
         """A fresh agent for one episode."""
 
+    @classmethod
+    def missing_model(cls, team: tuple) -> str | None:
+        """What is missing for this team of capabilities to play (a trained model's file, and
+        the command that makes it), checked before a run writes anything; None: nothing."""
+        return None
+
     def make_central(self, public: PublicInfo, outbox: Outbox) -> CentralNode | None:
         return None
 

@@ -306,20 +306,41 @@ class LearnedTeam(Team):
         self.config = AgentConfig.load(self.config_path)
         self._loaded: dict = {}
 
+    @classmethod
+    def trained_setting(cls, capabilities) -> str:
+        """The setting whose model plays this team of capabilities."""
+        team = tuple(tuple(c) for c in capabilities)
+        if cls.team_override and team == tuple(map(tuple, cls.team_override)):
+            return "I"  # a team of its own (SA) is trained once, on Setting I's episodes
+        setting = next((s for s, members in SETTINGS.items() if members == team), None)
+        if setting is None:
+            raise ValueError(
+                f"{cls.name} is trained for the teams of Settings {sorted(SETTINGS)}, "
+                f"not {list(team)}"
+            )
+        return setting
+
+    @classmethod
+    def missing_model(cls, team: tuple) -> str | None:
+        from maniskill_tidy.training.decision_trainer import AgentConfig
+
+        setting = cls.trained_setting(team)
+        out = AgentConfig.load(resolve(cls.config_file)).out
+        path = resolve(out) / f"setting_{setting}" / "model.pt"
+        if path.is_file():
+            return None
+        # an oracle acts with another config's model (SA(Oracle): agents/sa.yaml's)
+        config = f"{out}.yaml" if cls.oracle else cls.config_file
+        return (
+            f"{path} not found; train it with `maniskill-tidy train {config} --setting {setting}`"
+        )
+
     def models(self, capabilities: list) -> tuple:
         """The decision model trained for this team, and the frozen perception model."""
         from maniskill_tidy.training.decision_trainer import load_model
         from maniskill_tidy.training.perception_trainer import load_agent
 
-        team = tuple(tuple(c) for c in capabilities)
-        setting = next((s for s, members in SETTINGS.items() if members == team), None)
-        if self.team_override and team == tuple(map(tuple, self.team_override)):
-            setting = "I"  # a team of its own (SA) is trained once, on Setting I's episodes
-        if setting is None:
-            raise ValueError(
-                f"{self.config.name} is trained for the teams of Settings {sorted(SETTINGS)}, "
-                f"not {list(team)}"
-            )
+        setting = self.trained_setting(capabilities)
         if setting not in self._loaded:
             # Batch-of-one inference: one thread is fastest, and several contend with the
             # other evaluation workers (measured 2-20 x slower on 2 busy cores).

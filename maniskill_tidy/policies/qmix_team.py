@@ -101,6 +101,26 @@ class QmixTeam(Team):
         self.model, self.epsilon, self.steps, self._perception = model, epsilon, steps, perception
         self._loaded: dict = {}
 
+    @classmethod
+    def trained_setting(cls, capabilities) -> str:
+        team = tuple(tuple(c) for c in capabilities)
+        setting = next((s for s, members in SETTINGS.items() if members == team), None)
+        if setting is None:
+            raise ValueError(f"qmix is trained for the teams of Settings {sorted(SETTINGS)}, "
+                             f"not {list(team)}")  # fmt: skip
+        return setting
+
+    @classmethod
+    def missing_model(cls, team: tuple) -> str | None:
+        from maniskill_tidy.policies.learned import resolve
+
+        setting = cls.trained_setting(team)
+        path = resolve(cls.folder) / f"setting_{setting}" / "model.pt"
+        if path.is_file():
+            return None
+        train = f"maniskill-tidy train agents/qmix.yaml --setting {setting}"
+        return f"{path} not found; train it with `{train}`"
+
     def models(self, capabilities: list) -> tuple:
         from maniskill_tidy.policies.learned import resolve
         from maniskill_tidy.training.perception_trainer import load_agent
@@ -108,11 +128,7 @@ class QmixTeam(Team):
 
         if self.model is not None:
             return self.model, self._perception
-        team = tuple(tuple(c) for c in capabilities)
-        setting = next((s for s, members in SETTINGS.items() if members == team), None)
-        if setting is None:
-            raise ValueError(f"qmix is trained for the teams of Settings {sorted(SETTINGS)}, "
-                             f"not {list(team)}")  # fmt: skip
+        setting = self.trained_setting(capabilities)
         if setting not in self._loaded:
             torch.set_num_threads(1)
             model, saved = load_qmix(resolve(self.folder) / f"setting_{setting}")
