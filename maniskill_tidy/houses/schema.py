@@ -225,7 +225,7 @@ def rotated_bounds(
 def _rounded(x: Any) -> Any:
     """Plain JSON values with floats rounded, so that files are small and identical across
     runs and platforms. Walks dataclasses itself: ``asdict`` deep-copies every leaf first,
-    which cost a third of dataset generation."""
+    which took about 15 % of dataset generation."""
     if isinstance(x, float):
         r = round(x, 4)
         return 0.0 if r == 0 else r

@@ -47,7 +47,7 @@ from maniskill_tidy.policies.message_exchange import LearnedCentral, MessageExch
 from maniskill_tidy.policies.perceiving import PerceivingAgent
 from maniskill_tidy.policies.viewpoints import viewpoints
 from maniskill_tidy.policies.walker import Leg, NoViewpoint, Walker
-from maniskill_tidy.tasks.teams import SETTINGS
+from maniskill_tidy.tasks.teams import SETTINGS, setting_of
 
 REPO = Path(__file__).resolve().parents[2]
 COMMIT_STEPS = 4  # env steps a sub-goal is pursued before a new prediction replaces it
@@ -141,10 +141,9 @@ class LearnedAgent(PerceivingAgent):
     # ------------------------------------------------------------------ perception
     def observe(self, view: AgentView) -> None:
         x = self.perceive(view)
-        if self.oracle:  # it knows which objects in view are misplaced
-            known = self.public.oracle_misplaced
-            self.p_detections = np.array([float(o in known) for o in self.frame.det_object])
+        if self.oracle:  # it knows which objects in view are misplaced and not yet moved
             self.targets.pop(self.state.held, None)
+            self.p_detections = np.array([float(o in self.targets) for o in self.frame.det_object])
         x["prev_task"] = self.prev_task[None, None]
         f = self.frame
         if self.decision.cfg.layout:
@@ -312,7 +311,7 @@ class LearnedTeam(Team):
         team = tuple(tuple(c) for c in capabilities)
         if cls.team_override and team == tuple(map(tuple, cls.team_override)):
             return "I"  # a team of its own (SA) is trained once, on Setting I's episodes
-        setting = next((s for s, members in SETTINGS.items() if members == team), None)
+        setting = setting_of(team)
         if setting is None:
             raise ValueError(
                 f"{cls.name} is trained for the teams of Settings {sorted(SETTINGS)}, "

@@ -23,7 +23,7 @@ from maniskill_tidy.models.qmix import ACTIONS, QmixTeamModel, observation
 from maniskill_tidy.policies.base import EXPLORE, Agent, AgentView, PublicInfo, SubTask, Team
 from maniskill_tidy.policies.channel import Message, Outbox
 from maniskill_tidy.policies.perceiving import PerceivingAgent
-from maniskill_tidy.tasks.teams import SETTINGS
+from maniskill_tidy.tasks.teams import SETTINGS, setting_of
 
 OPERATIONS = (Action.PickUp, Action.PutDown, Action.Drop)
 
@@ -103,11 +103,10 @@ class QmixTeam(Team):
 
     @classmethod
     def trained_setting(cls, capabilities) -> str:
-        team = tuple(tuple(c) for c in capabilities)
-        setting = next((s for s, members in SETTINGS.items() if members == team), None)
+        setting = setting_of(capabilities)
         if setting is None:
             raise ValueError(f"qmix is trained for the teams of Settings {sorted(SETTINGS)}, "
-                             f"not {list(team)}")  # fmt: skip
+                             f"not {list(map(tuple, capabilities))}")  # fmt: skip
         return setting
 
     @classmethod

@@ -192,7 +192,7 @@ def generate_meta_task(
     randomness depends only on the arguments."""
     rng = house_rng(seed, house_index, stream=1 + task_index)
     # Only objects move: copy them and share the rest (a deep copy of the house per task
-    # cost more than generating the house).
+    # took as long as generating the house).
     work = replace(house, objects=[replace(o) for o in house.objects])
     frame, free = house_grid(work)
     placer = ObjectPlacer(work, frame, free, rng)

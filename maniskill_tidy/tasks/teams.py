@@ -17,6 +17,12 @@ SETTINGS: dict[str, tuple[Capability, ...]] = {
 }
 
 
+def setting_of(members) -> str | None:
+    """The named setting whose team is exactly these capabilities, or None."""
+    members = tuple(tuple(int(v) for v in m) for m in members)
+    return next((name for name, team in SETTINGS.items() if team == members), None)
+
+
 def load_preset(path: str | Path) -> tuple[str | None, tuple[Capability, ...]]:
     """A team preset file (the top-level ``envs/*.json``): its setting name and its team."""
     path = Path(path)
