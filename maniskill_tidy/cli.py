@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 import time
 from pathlib import Path
@@ -17,14 +18,31 @@ from maniskill_tidy.knowledge import load_catalog, load_placement
 from maniskill_tidy.tasks.metatask import SINGLE_FRACTION
 
 
+def _split_numbers(text: str | None) -> tuple | None:
+    if text is None:
+        return None
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != 3:
+        raise ValueError(f"--split {text!r}: expected three numbers TRAIN,VAL,TEST")
+    return values
+
+
 def _generate(args: argparse.Namespace) -> int:
     from maniskill_tidy.tasks.dataset import generate_dataset
 
-    counts = tuple(int(v) for v in args.split.split(",")) if args.split else None
-    if counts is not None and len(counts) != 3:
-        raise ValueError(f"--split {args.split!r}: expected three counts TRAIN,VAL,TEST")
     if args.workers < 1:
         raise ValueError(f"--workers must be at least 1, got {args.workers}")
+    if args.procthor:
+        return _generate_procthor(args)
+    if args.houses is None:
+        raise ValueError("--houses is required (or --procthor FILE to import houses)")
+    split = _split_numbers(args.split)
+    counts = tuple(int(v) for v in split) if split else None
+    if split is not None and counts != split:
+        raise ValueError(f"--split {args.split!r}: expected three house counts TRAIN,VAL,TEST")
     start = time.perf_counter()
     manifest = generate_dataset(
         Path(args.out),
@@ -40,6 +58,35 @@ def _generate(args: argparse.Namespace) -> int:
         f"tasks {manifest['tasks']}, hash {manifest['dataset_hash'][:12]}, "
         f"{args.houses / elapsed:.1f} houses/s ({elapsed:.1f} s, {args.workers} workers)"
     )
+    return 0
+
+
+def _generate_procthor(args: argparse.Namespace) -> int:
+    from maniskill_tidy.tasks.procthor_dataset import DEFAULT_WEIGHTS, generate_procthor_dataset
+
+    start = time.perf_counter()
+    manifest = generate_procthor_dataset(
+        Path(args.procthor),
+        Path(args.out),
+        args.seed,
+        _split_numbers(args.split) or DEFAULT_WEIGHTS,
+        limit=args.houses,
+        workers=args.workers,
+        single_fraction=args.single_fraction,
+    )
+    elapsed = time.perf_counter() - start
+    read = manifest["source"]["houses_read"]
+    print(
+        f"wrote {args.out}: {manifest['houses']} of {read} ProcTHOR houses kept "
+        f"{manifest['splits']}, tasks {manifest['tasks']}, hash {manifest['dataset_hash'][:12]}, "
+        f"{read / elapsed:.1f} houses/s ({elapsed:.1f} s, {args.workers} workers)"
+    )
+    reasons: dict[str, int] = {}
+    for r in manifest["rejected"]:
+        key = re.sub(r"\d+", "N", r["reason"].split(":")[0])
+        reasons[key] = reasons.get(key, 0) + 1
+    for reason, n in sorted(reasons.items(), key=lambda kv: -kv[1]):
+        print(f"  rejected {n}: {reason}")
     return 0
 
 
@@ -342,10 +389,22 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
 
     g = sub.add_parser("generate", help="generate houses and tidy-up tasks")
-    g.add_argument("--houses", type=int, required=True)
+    g.add_argument(
+        "--houses", type=int, help="how many houses (with --procthor: read at most the first N)"
+    )
     g.add_argument("--seed", type=int, default=0)
     g.add_argument("--out", required=True)
-    g.add_argument("--split", help="TRAIN,VAL,TEST house counts (default: 4:1:1 as 80/20/20)")
+    g.add_argument(
+        "--procthor",
+        metavar="FILE",
+        help="build the dataset from the houses of a ProcTHOR .jsonl(.gz) file, repairing or "
+        "rejecting each (reasons in the manifest)",
+    )
+    g.add_argument(
+        "--split",
+        help="TRAIN,VAL,TEST house counts (default: 4:1:1 as 80/20/20); with --procthor, "
+        "proportions of the kept houses (default 4,1,1)",
+    )
     g.add_argument("--workers", type=int, default=1)
     g.add_argument(
         "--single-fraction",

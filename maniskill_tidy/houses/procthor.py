@@ -104,11 +104,11 @@ def _import_house(d: dict, house_id: str) -> House:
         poly = [_xz(p, f"{rw}.floorPolygon") for p in _list(r, "floorPolygon", rw)]
         if len(poly) < 3:
             raise ProcTHORImportError(f"{rw}: floorPolygon needs at least 3 points")
-        area2 = sum(
-            poly[k][0] * poly[k - 1][1] - poly[k - 1][0] * poly[k][1] for k in range(len(poly))
+        signed2 = sum(  # twice the signed area: positive when counter-clockwise
+            poly[k - 1][0] * poly[k][1] - poly[k][0] * poly[k - 1][1] for k in range(len(poly))
         )
-        if area2 < 0:
-            poly = poly[::-1]
+        if signed2 < 0:
+            poly = poly[::-1]  # the schema's rooms are counter-clockwise
         room_type = _need(r, "roomType", rw)
         if room_type not in ROOM_TYPES:
             raise ProcTHORImportError(f"{rw}: roomType {room_type!r} not in {ROOM_TYPES}")
@@ -274,13 +274,14 @@ def _import_object(house: House, o: dict, where: str, parent: Furniture | None) 
 
 
 def read_procthor_houses(
-    path: Path, problems: list[str] | None = None, strict: bool = False
+    path: Path, problems: list[str] | None = None, strict: bool = False, limit: int | None = None
 ) -> Iterator[House]:
     """Houses of a ProcTHOR ``.jsonl``/``.jsonl.gz`` file (one house per line), in order.
 
     House ``n`` (line n + 1) gets the id ``procthor_NNNNN``. A line that is not JSON or a house
     that does not import is skipped and reported in ``problems`` (one line naming the house and
-    the field), or raised with ``strict``; a damaged gzip stream always raises."""
+    the field), or raised with ``strict``; a damaged gzip stream always raises. ``limit``: read
+    only the first ``limit`` lines."""
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such ProcTHOR house file")
@@ -288,6 +289,8 @@ def read_procthor_houses(
     try:
         with opener(path, "rt") as f:
             for n, line in enumerate(f):
+                if limit is not None and n >= limit:
+                    break
                 if not line.strip():
                     continue
                 try:

@@ -81,14 +81,19 @@ def _make_shard(args: tuple[int, str, int, int, float]) -> tuple[str, int, int, 
     for i, house in zip(range(start, stop), built, strict=True):
         houses.append(house.to_dict())
         tasks += [t.to_dict() for t in generate_meta_tasks(house, seed, i, schedule[i])]
-    payload = {
-        "schema_version": SCHEMA_VERSION,
-        "split": split,
-        "seed": seed,
-        "houses": houses,
-        "tasks": tasks,
-    }
-    return split, stop - start, len(tasks), dumps_gz(payload)
+    return split, stop - start, len(tasks), shard_bytes(split, seed, houses, tasks)
+
+
+def shard_bytes(split: str, seed: int, houses: list[dict], tasks: list[dict]) -> bytes:
+    return dumps_gz(
+        {
+            "schema_version": SCHEMA_VERSION,
+            "split": split,
+            "seed": seed,
+            "houses": houses,
+            "tasks": tasks,
+        }
+    )
 
 
 def generate_dataset(
@@ -160,7 +165,20 @@ def generate_dataset(
     return write_manifest(out, params, [name for name, _ in jobs])
 
 
-def write_manifest(out: Path, params: dict, names: list[str]) -> dict:
+PROCEDURAL_SOURCE = (
+    "maniskill-tidy generate (procedural houses; knowledge derived from ProcTHOR, Apache-2.0)"
+)
+
+
+def write_manifest(
+    out: Path,
+    params: dict,
+    names: list[str],
+    source: str | dict = PROCEDURAL_SOURCE,
+    extra: dict | None = None,
+) -> dict:
+    """Hash every shard and write ``manifest.json``; ``extra`` adds keys (what an importer
+    rejected and why)."""
     files = {}
     for name in names:
         data = (out / name).read_bytes()
@@ -179,8 +197,8 @@ def write_manifest(out: Path, params: dict, names: list[str]) -> dict:
         "dataset_hash": sha256(
             "".join(f"{n}:{f['sha256']}\n" for n, f in sorted(files.items())).encode()
         ),
-        "source": "maniskill-tidy generate (procedural houses; knowledge derived from ProcTHOR, "
-        "Apache-2.0)",
+        "source": source,
+        **(extra or {}),
     }
     write_atomic(
         out / "manifest.json", (json.dumps(manifest, indent=1, sort_keys=True) + "\n").encode()
