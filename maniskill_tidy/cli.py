@@ -235,9 +235,11 @@ def _policies(args: argparse.Namespace) -> int:
 
 
 def _validate(args: argparse.Namespace) -> int:
-    from maniskill_tidy.tasks.validate import validate_dataset
+    from maniskill_tidy.tasks.validate import physics_problems, validate_dataset
 
     problems = validate_dataset(Path(args.dir))
+    if args.physics and not problems:
+        problems = physics_problems(Path(args.dir))
     for p in problems[: args.max_problems]:
         print(p)
     if len(problems) > args.max_problems:
@@ -418,6 +420,12 @@ def build_parser() -> argparse.ArgumentParser:
     v = sub.add_parser("validate", help="check a dataset and explain what is wrong")
     v.add_argument("dir")
     v.add_argument("--max-problems", type=int, default=50)
+    v.add_argument(
+        "--physics",
+        action="store_true",
+        help="also build every house in the simulator and check that no object moves more "
+        "than 3 cm when an episode starts (about 0.3 s a meta-task)",
+    )
     v.set_defaults(func=_validate)
 
     s = sub.add_parser("dataset-stats", help="Fig. 5 statistics of a dataset, printed and drawn")

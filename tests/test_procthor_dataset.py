@@ -6,6 +6,7 @@ from __future__ import annotations
 import gzip
 import json
 import math
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -19,8 +20,14 @@ from maniskill_tidy.houses.procthor import import_house, read_procthor_houses
 from maniskill_tidy.houses.repair import MIN_OBJECTS, HouseRejected, make_sound
 from maniskill_tidy.houses.schema import Furniture
 from maniskill_tidy.knowledge import FLOOR, load_placement
-from maniskill_tidy.tasks.dataset import load_dataset
-from maniskill_tidy.tasks.validate import check_house, validate_dataset
+from maniskill_tidy.tasks.dataset import (
+    dumps_gz,
+    load_dataset,
+    read_shard,
+    write_atomic,
+    write_manifest,
+)
+from maniskill_tidy.tasks.validate import check_house, physics_problems, validate_dataset
 from tests.conftest import DATA
 from tests.test_cli_errors import cli, one_line_error
 
@@ -245,23 +252,29 @@ def test_generate_procthor_refuses_a_missing_file_and_writes_nothing(tmp_path):
     assert not out.exists()
 
 
-def test_no_object_moves_when_an_episode_starts(procthor_dataset):
-    """Every object configuration of the test split (a meta-task's starts only move robots)."""
-    from maniskill_tidy.envs.hetero_tidy import HeteroTidyEnv
-
+def test_no_object_moves_when_an_episode_starts(procthor_dataset, tmp_path):
+    """Every object configuration of the test split (a meta-task's starts only move robots);
+    and the check itself flags an object left floating."""
     out, _ = procthor_dataset
-    env = HeteroTidyEnv(setting="I", dataset=str(out), split="test", obs_mode="none")
-    try:
-        checked = 0
-        for i in range(len(env.episodes)):
-            if not env.episodes.get(i).id.endswith("start_0"):
-                continue
-            _, info = env.reset(options={"episode": i})
-            assert info["fallen"] == [], (env.episode.id, info["fallen"])
-            checked += 1
-        assert checked >= 20
-    finally:
-        env.close()
+    assert physics_problems(out, splits=("test",), progress=False) == []
+
+    lifted = tmp_path / "lifted"
+    shutil.copytree(out, lifted)
+    manifest = json.loads((lifted / "manifest.json").read_text())
+    name = next(n for n in sorted(manifest["files"]) if n.startswith("test/"))
+    payload = read_shard(lifted / name)
+    house = payload["houses"][0]
+    obj = house["objects"][0]
+    obj["position"][2] += 0.2
+    payload["houses"] = [house]
+    payload["tasks"] = [t for t in payload["tasks"] if t["house_id"] == house["id"]][:1]
+    write_atomic(lifted / name, dumps_gz(payload))
+    params = {k: v for k, v in manifest.items() if k not in ("files", "tasks", "dataset_hash")}
+    write_manifest(lifted, params, [name], source=manifest["source"])
+    for other in set(manifest["files"]) - {name}:
+        (lifted / other).unlink()
+    problems = physics_problems(lifted, progress=False)
+    assert len(problems) == 1 and obj["id"] in problems[0] and "3 cm" in problems[0]
 
 
 def test_the_env_and_eval_run_on_it_unchanged(procthor_dataset, tmp_path):

@@ -9,7 +9,8 @@ and one connected walkable floor. :func:`make_sound` applies these rules in orde
 1. furniture turns to the nearest quarter turn, and stacked furniture stands on its parent's top;
 2. of two floor pieces that overlap, the smaller is dropped (with what stands on it);
 3. while the walkable floor is split, the floor piece whose removal joins most of it is dropped;
-4. a piece with a surface no free cell can reach is dropped;
+4. a piece with a surface no free cell can reach, or whose middle is out of PickUp's reach, is
+   dropped;
 5. each object keeps its place, slid onto the surface if it sticks out and set down on it, when
    D holds there, it fits and touches no other object; otherwise it moves to a free spot on a
    surface where D holds (its own piece of furniture first, then its room, then the house);
@@ -27,6 +28,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from maniskill_tidy.envs.actions import REACH
 from maniskill_tidy.houses.furnish import overlaps
 from maniskill_tidy.houses.navgrid import (
     blocks_navigation,
@@ -48,6 +50,7 @@ from maniskill_tidy.knowledge import load_placement
 MIN_OBJECTS = 5  # a meta-task misplaces up to 5 objects
 TOL = 1e-3  # the tolerance `validate` allows
 MAX_DROPS_FOR_CONNECTION = 3
+VIEW_REACH = REACH - 0.05  # a surface's middle must have a viewpoint (policies.viewpoints)
 
 
 class HouseRejected(ValueError):
@@ -134,6 +137,9 @@ def _connect(house: House, log: RepairLog) -> None:
 
 
 def _drop_unreachable(house: House, log: RepairLog) -> None:
+    """Drop pieces with a surface whose middle no robot can reach: PickUp and PutDown aim at a
+    point from a cell within their reach (an L-shaped counter imported as its bounding box is
+    a block 2.3 m deep)."""
     while True:
         frame, free = compute_free(house)
         walkable = main_component(free)
@@ -141,10 +147,16 @@ def _drop_unreachable(house: House, log: RepairLog) -> None:
             slot.furniture.id
             for slot in surface_slots(house)
             if not reach_cells(frame, walkable, slot.bounds).any()
+            or not reach_cells(frame, walkable, _middle(slot), VIEW_REACH).any()
         }
         if not out:
             return
         _drop_furniture(house, out, log)
+
+
+def _middle(slot: SurfaceSlot) -> tuple[float, float, float, float]:
+    x, y = slot.center[:2]
+    return x, y, x, y
 
 
 def _set_down(o: PlacedObject, slot: SurfaceSlot) -> PlacedObject | None:
