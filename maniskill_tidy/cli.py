@@ -234,6 +234,24 @@ def _policies(args: argparse.Namespace) -> int:
     return 0
 
 
+def _export(args: argparse.Namespace) -> int:
+    from maniskill_tidy.houses.procthor_export import export_houses
+    from maniskill_tidy.tasks.dataset import SPLITS, load_dataset, read_manifest
+
+    if not args.out.endswith((".jsonl", ".jsonl.gz")):
+        raise ValueError(f"--out {args.out}: expected a .jsonl or .jsonl.gz file name")
+    read_manifest(Path(args.procthor))  # a dataset directory, or a one-line error
+    houses = [
+        h for split in SPLITS for h in load_dataset(Path(args.procthor), split).houses.values()
+    ]
+    left_out = export_houses(houses, Path(args.out))
+    print(f"wrote {args.out}: {len(houses)} houses in ProcTHOR's format")
+    if left_out:
+        what = ", ".join(f"{t} x{n}" for t, n in sorted(left_out.items()))
+        print(f"  left out, no asset of their type in ProcTHOR's database: {what}")
+    return 0
+
+
 def _validate(args: argparse.Namespace) -> int:
     from maniskill_tidy.tasks.validate import physics_problems, validate_dataset
 
@@ -416,6 +434,13 @@ def build_parser() -> argparse.ArgumentParser:
         "test split, 565 of 1000)",
     )
     g.set_defaults(func=_generate)
+
+    x = sub.add_parser("export", help="write a dataset's houses in another format")
+    x.add_argument(
+        "--procthor", required=True, metavar="DIR", help="dataset directory to write as ProcTHOR"
+    )
+    x.add_argument("--out", required=True, help="ProcTHOR house file (.jsonl or .jsonl.gz)")
+    x.set_defaults(func=_export)
 
     v = sub.add_parser("validate", help="check a dataset and explain what is wrong")
     v.add_argument("dir")

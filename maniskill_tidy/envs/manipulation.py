@@ -25,6 +25,11 @@ class Manipulation:
         self.sizes = {o.id: o.size for o in hs.house.objects}
         self.types = {o.id: o.type for o in hs.house.objects}
         self.seg_of_object = {i.id: sid for sid, i in hs.instances.items() if i.kind == "object"}
+        # Pieces standing on a top (a plant on a dresser) take room there like objects do.
+        self.stacked: dict[str, list[tuple[float, float, float, float]]] = {}
+        for f in hs.house.furniture:
+            if f.parent:
+                self.stacked.setdefault(f.parent, []).append(f.footprint())
         self.furniture_of_seg: dict[int, str] = {}
         self.link_of_seg: dict[int, str] = {}
         for sid, inst in hs.instances.items():
@@ -173,7 +178,7 @@ class Manipulation:
             return None
         centre = self.surface_centre(f, s)
         x0, y0, x1, y1 = rotated_bounds(centre[:2], s.size[0], s.size[1], f.yaw)
-        others = []
+        others = list(self.stacked.get(f.id, [])) if s.name == "top" else []
         for other, st in self.hs.state.items():
             if other != oid and st.receptacle == f.id and st.surface == s.name:
                 p = self.hs.object_bottom(other)
