@@ -45,6 +45,33 @@ def bench_generation(houses: int, workers: int) -> dict:
     }
 
 
+SAMPLE = Path(__file__).resolve().parents[1] / "tests" / "data" / "procthor-sample-20.jsonl.gz"
+
+
+def bench_procthor_generation(source: Path, workers: int) -> dict:
+    """``generate --procthor``: import, repair, meta-tasks, written and hashed."""
+    from maniskill_tidy.tasks.procthor_dataset import generate_procthor_dataset
+
+    out = Path(tempfile.mkdtemp(prefix="bench-procthor-"))
+    try:
+        ref = calibration()
+        start = time.perf_counter()
+        manifest = generate_procthor_dataset(source, out, seed=0, workers=workers, progress=False)
+        elapsed = time.perf_counter() - start
+        ref = (ref + calibration()) / 2
+    finally:
+        shutil.rmtree(out, ignore_errors=True)
+    houses = manifest["source"]["houses_read"]
+    return {
+        "houses": houses,
+        "kept": manifest["houses"],
+        "workers": workers,
+        "houses_per_s": houses / elapsed,
+        "calibration_s": ref,
+        "houses_per_calibration": houses / elapsed * ref,
+    }
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--houses", type=int, default=120)
@@ -52,6 +79,11 @@ def main(argv: list[str] | None = None) -> int:
         "--only", choices=("generation", "env", "map", "map-accuracy", "eval"), default=None
     )
     parser.add_argument("--eval-dataset", help="dataset for the eval row (default: shipped one)")
+    parser.add_argument(
+        "--procthor",
+        default=str(SAMPLE),
+        help="ProcTHOR house file for the import row (default: the 20 sample houses of tests/data)",
+    )
     args = parser.parse_args(argv)
     if args.only in (None, "eval"):
         from maniskill_tidy.eval.benchmark import bench_eval, report
@@ -87,6 +119,17 @@ def main(argv: list[str] | None = None) -> int:
         r = bench_generation(args.houses, workers)
         print(
             f"{r['workers']:>7} {r['houses']:>6} {r['houses_per_s']:>9.1f} "
+            f"{r['calibration_s']:>8.3f} {r['houses_per_calibration']:>12.2f}"
+        )
+    print()
+    source = Path(args.procthor)
+    print(f"dataset generation from ProcTHOR houses ({source.name}: import, repair, meta-tasks)")
+    header = ("workers", "houses", "kept", "houses/s", "calib s", "houses/calib")
+    print(" ".join(f"{h:>{w}}" for h, w in zip(header, (7, 6, 5, 9, 8, 12), strict=True)))
+    for workers in (1, 2):
+        r = bench_procthor_generation(source, workers)
+        print(
+            f"{r['workers']:>7} {r['houses']:>6} {r['kept']:>5} {r['houses_per_s']:>9.1f} "
             f"{r['calibration_s']:>8.3f} {r['houses_per_calibration']:>12.2f}"
         )
     return 0
