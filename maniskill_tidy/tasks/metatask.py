@@ -113,9 +113,14 @@ def reasonable_surfaces(house: House, object_type: str, size: list[float]) -> li
     return out
 
 
-def findable(furniture, surface) -> bool:
-    """Whether an object misplaced on ``surface`` can be seen by some robot (see the top)."""
-    if surface.center[2] > MAX_MISPLACED_HEIGHT:
+def findable(furniture, surface, from_floor: bool = False) -> bool:
+    """Whether an object misplaced on ``surface`` can be seen by some robot (see the top).
+
+    ``from_floor``: measure the height from the floor. Generator version 3 measures it from the
+    piece's own base, so the inside of a microwave standing on a counter counts as 0.05 m high;
+    ProcTHOR datasets (a safe on a dresser, its inside at 1.03 m) measure from the floor."""
+    height = surface.center[2] + (furniture.position[2] if from_floor else 0.0)
+    if height > MAX_MISPLACED_HEIGHT:
         return False
     if not surface.inside:
         return True
@@ -126,7 +131,13 @@ def findable(furniture, surface) -> bool:
 
 
 def _try_move(
-    placer: ObjectPlacer, house: House, obj, how: str, rng, free_xy: np.ndarray
+    placer: ObjectPlacer,
+    house: House,
+    obj,
+    how: str,
+    rng,
+    free_xy: np.ndarray,
+    from_floor: bool = False,
 ) -> Location | None:
     knowledge = load_placement()
     rooms = {r.id: r.type for r in house.rooms}
@@ -143,7 +154,7 @@ def _try_move(
         and not (s.furniture.id == obj.receptacle and s.surface.name == obj.surface)
         and not knowledge.D(obj.type, s.surface.receptacle_type, rooms[s.furniture.room])
         and fits(s, obj.size)
-        and findable(s.furniture, s.surface)
+        and findable(s.furniture, s.surface, from_floor)
     ]
     for i in rng.permutation(len(slots))[:8]:
         slot = slots[int(i)]
@@ -186,10 +197,15 @@ def single_schedule(
 
 
 def generate_meta_task(
-    house: House, seed: int, house_index: int, task_index: int, single: bool = False
+    house: House,
+    seed: int,
+    house_index: int,
+    task_index: int,
+    single: bool = False,
+    from_floor: bool = False,
 ) -> MetaTask:
     """Meta-task ``task_index`` of a house, meant to be Single or Cross (``single``); its
-    randomness depends only on the arguments."""
+    randomness depends only on the arguments. ``from_floor``: see :func:`findable`."""
     rng = house_rng(seed, house_index, stream=1 + task_index)
     # Only objects move: copy them and share the rest (a deep copy of the house per task
     # took as long as generating the house).
@@ -215,7 +231,7 @@ def generate_meta_task(
             first = allowed[int(rng.choice(len(allowed), p=p / p.sum()))]
             moves = [first] + [m for m in allowed if m != first]
         for how in moves:
-            target = _try_move(placer, work, obj, how, rng, free_xy)
+            target = _try_move(placer, work, obj, how, rng, free_xy, from_floor)
             if target is None:
                 continue
             original = Location(obj.receptacle, obj.surface, obj.room, list(obj.position), obj.yaw)
@@ -256,14 +272,18 @@ def house_grid(house: House) -> tuple[GridFrame, np.ndarray]:
 
 
 def generate_meta_tasks(
-    house: House, seed: int, house_index: int, single: set[int] | None = None
+    house: House,
+    seed: int,
+    house_index: int,
+    single: set[int] | None = None,
+    from_floor: bool = False,
 ) -> list[MetaTask]:
     """A house's meta-tasks; ``single``: which are meant to be Single (default: the share of
     ``single_schedule`` for this house alone)."""
     if single is None:
         single = single_schedule([house], [house_index], seed)[house_index]
     return [
-        generate_meta_task(house, seed, house_index, t, t in single)
+        generate_meta_task(house, seed, house_index, t, t in single, from_floor)
         for t in range(META_TASKS_PER_HOUSE)
     ]
 

@@ -33,7 +33,7 @@ from maniskill_tidy.tasks.dataset import (
 from maniskill_tidy.tasks.metatask import SINGLE_FRACTION, generate_meta_tasks, single_schedule
 from maniskill_tidy.tasks.validate import check_task
 
-IMPORTER_VERSION = "1"
+IMPORTER_VERSION = "2"  # 2: misplacement heights measured from the floor
 REPAIR_STREAM = 200  # house_rng stream of the repairs' relocations
 DEFAULT_WEIGHTS = (4, 1, 1)  # the procedural generator's 80/20/20 proportions
 
@@ -59,9 +59,9 @@ def _repair(job: tuple[int, int, dict]) -> tuple[int, dict | None, dict | None, 
 def _tasks(job: tuple[int, int, dict, list[int]]) -> tuple[int, list[dict] | None, str | None]:
     seed, n, house_dict, single = job
     house = house_from_dict(house_dict)
-    tasks = generate_meta_tasks(house, seed, n, set(single))
+    tasks = generate_meta_tasks(house, seed, n, set(single), from_floor=True)
     for task in tasks:
-        problems = check_task(house, task)
+        problems = check_task(house, task, from_floor=True)
         if problems:
             return n, None, f"meta-task {task.index}: {problems[0].split(': ', 1)[-1]}"
     return n, [t.to_dict() for t in tasks], None

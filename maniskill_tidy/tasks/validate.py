@@ -110,7 +110,8 @@ def check_house(house: House) -> list[str]:
     return problems
 
 
-def check_task(house: House, task: MetaTask) -> list[str]:
+def check_task(house: House, task: MetaTask, from_floor: bool = False) -> list[str]:
+    """``from_floor``: heights as ProcTHOR datasets measure them (see ``findable``)."""
     where = task.id
     problems = []
     if not 1 <= task.k <= 5 or task.k != len(task.misplaced):
@@ -147,7 +148,7 @@ def check_task(house: House, task: MetaTask) -> list[str]:
                 )
                 continue
             rtype, fp_reach = slot.surface.receptacle_type, REACH
-            if not findable(slot.furniture, slot.surface):
+            if not findable(slot.furniture, slot.surface, from_floor):
                 problems.append(
                     f"{where}: {m.object} misplaced on {loc.receptacle}/{loc.surface}, where no "
                     "robot camera can see it (too high, a drawer or an open-top bin)"
@@ -203,6 +204,7 @@ def validate_dataset(root: Path, progress: bool = True, deep: bool = True) -> li
     except DatasetError as e:
         return [str(e)]
     problems = []
+    from_floor = "importer_version" in manifest  # made by generate --procthor
     listed = set(manifest.get("files", {}))
     if not listed or not any(f.get("houses") for f in manifest.get("files", {}).values()):
         problems.append("manifest.json: the dataset has no houses (generate with --houses >= 1)")
@@ -254,7 +256,7 @@ def validate_dataset(root: Path, progress: bool = True, deep: bool = True) -> li
             if house is None:
                 problems.append(f"{name}: task {task.id} refers to unknown house {task.house_id}")
                 continue
-            problems += [f"{name}: {p}" for p in check_task(house, task)]
+            problems += [f"{name}: {p}" for p in check_task(house, task, from_floor)]
     return problems
 
 
