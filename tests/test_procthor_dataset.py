@@ -374,3 +374,37 @@ def test_export_refuses_bad_input(tmp_path, small_dataset):
     p = cli("export", "--procthor", str(tmp_path), "--out", str(tmp_path / "h.jsonl"))
     one_line_error(p, "manifest.json")
     assert not (tmp_path / "h.jsonl").exists()
+
+
+@pytest.mark.parametrize(
+    ("n", "shape", "strips"), [(8, "Countertop_L_", 2), (10, "Countertop_C_", 3)]
+)
+def test_l_and_c_shaped_counters_become_straight_ones_along_the_walls(n, shape, strips):
+    """As one box an L-shaped counter was up to 3 m deep, its top's middle out of every
+    robot's reach, and the kitchen's objects were dropped with it."""
+    raw = _raw(n)
+    counter = next(o for o in raw["objects"] if o["assetId"].startswith(shape))
+    house = import_house(raw, f"procthor_{n:05d}")
+    pieces = [f for f in house.furniture if f.asset == counter["assetId"]]
+    assert len(pieces) == strips and all(f.type == "CounterTop" for f in pieces)
+    assert all(f.size[1] == pytest.approx(0.61) for f in pieces)
+    for i, a in enumerate(pieces):
+        for b in pieces[i + 1 :]:
+            assert not overlaps(a.footprint(), b.footprint(), -1e-3), (a.id, b.id)
+    x0 = min(f.footprint()[0] for f in pieces)
+    x1 = max(f.footprint()[2] for f in pieces)
+    y0 = min(f.footprint()[1] for f in pieces)
+    y1 = max(f.footprint()[3] for f in pieces)
+    centre = ((x0 + x1) / 2, (y0 + y1) / 2)
+    for f in pieces:  # each faces the inside of the L or U: its front (+y) points there
+        front = (-math.sin(f.yaw), math.cos(f.yaw))
+        to_centre = (centre[0] - f.position[0], centre[1] - f.position[1])
+        assert front[0] * to_centre[0] + front[1] * to_centre[1] > 0, f.id
+    on_counter = {c["id"].replace("|", "_") for c in counter.get("children", [])}
+    ids = {f.id for f in pieces}
+    for o in house.objects:
+        if o.id in on_counter:
+            assert o.receptacle in ids
+    sound, log = make_sound(house, np.random.default_rng(0))
+    assert not set(log.furniture_dropped) & ids  # the strips stay
+    assert any(o.receptacle in ids for o in sound.objects)

@@ -252,6 +252,9 @@ def _import_object(house: House, o: dict, where: str, parent: Furniture | None) 
             )
         )
         return
+    if asset_id.startswith(("Countertop_L_", "Countertop_C_")):
+        _import_shaped_counter(house, o, where, asset_id, (x, y, max(z, 0.0)), yaw, (w, dpt, h))
+        return
     size = [w, dpt, h]
     surfaces, joints = parts_for(type_name, size)
     if not surfaces and info is not None and info.receptacle:
@@ -271,6 +274,94 @@ def _import_object(house: House, o: dict, where: str, parent: Furniture | None) 
     house.furniture.append(f)
     for j, child in enumerate(_list(o, "children", where, required=False)):
         _import_object(house, child, f"{where}.children[{j}]", parent=f)
+
+
+ARM = 0.61  # metres: the depth of a ProcTHOR counter (2 ft), L- and C-shaped ones included
+
+
+def _edge_to_wall(house: House, a: tuple[float, float], b: tuple[float, float]) -> float:
+    """Distance from the middle of segment ab to the nearest wall."""
+    mx, my = (a[0] + b[0]) / 2, (a[1] + b[1]) / 2
+    best = math.inf
+    for wall in house.walls:
+        (x0, y0), (x1, y1) = wall.start, wall.end
+        dx, dy = x1 - x0, y1 - y0
+        t = max(0.0, min(1.0, ((mx - x0) * dx + (my - y0) * dy) / max(dx * dx + dy * dy, 1e-12)))
+        best = min(best, math.hypot(mx - x0 - t * dx, my - y0 - t * dy))
+    return best
+
+
+def _import_shaped_counter(house, o, where, asset_id, position, yaw, size) -> None:
+    """An L- or C-shaped counter as two or three straight ones along the walls it stands
+    against: as one box it was up to 3 m deep, with a top whose middle no robot reaches and
+    a cabinet under floor a robot could have stood on. Which edges carry the arms is not in
+    the asset's metadata; they are the ones nearest the walls."""
+    w, d, h = size
+    turn = round(yaw / (math.pi / 2)) % 4
+    if turn % 2:
+        w, d = d, w
+    x0, y0, x1, y1 = (
+        position[0] - w / 2,
+        position[1] - d / 2,
+        position[0] + w / 2,
+        position[1] + d / 2,
+    )
+    # edge name -> (its segment, the yaw that makes a strip along it face the inside)
+    edges = {
+        "south": (((x0, y0), (x1, y0)), 0.0),
+        "north": (((x0, y1), (x1, y1)), math.pi),
+        "west": (((x0, y0), (x0, y1)), -math.pi / 2),
+        "east": (((x1, y0), (x1, y1)), math.pi / 2),
+    }
+    near = {e: _edge_to_wall(house, *seg) for e, (seg, _) in edges.items()}
+    if asset_id.startswith("Countertop_L_"):
+        pairs = [(a, b) for a in ("south", "north") for b in ("west", "east")]
+        chosen = list(min(pairs, key=lambda p: near[p[0]] + near[p[1]]))
+    else:  # C: the three edges nearest the walls, the middle one of the U first
+        away = max(near, key=near.get)
+        opposite = {"south": "north", "north": "south", "west": "east", "east": "west"}
+        chosen = [opposite[away]] + [e for e in edges if e not in (away, opposite[away])]
+    back = chosen[0]
+    strips = []
+    for k, edge in enumerate(chosen):
+        (a, b), strip_yaw = edges[edge]
+        horizontal = edge in ("south", "north")
+        lo, hi = (a[0], b[0]) if horizontal else (a[1], b[1])
+        if k > 0:  # an arm starts where the back strip ends
+            if back in ("south", "west"):
+                lo += ARM
+            else:
+                hi -= ARM
+        inward = ARM / 2 if edge in ("south", "west") else -ARM / 2
+        if horizontal:
+            centre = [(lo + hi) / 2, a[1] + inward]
+        else:
+            centre = [a[0] + inward, (lo + hi) / 2]
+        strip_size = [hi - lo, ARM, h]
+        surfaces, joints = parts_for("CounterTop", strip_size)
+        f = Furniture(
+            id=f"{_sid(_need(o, 'id', where))}_{edge}",
+            type="CounterTop",
+            room=_room_of(house, *centre),
+            position=[*centre, position[2]],
+            yaw=strip_yaw,
+            size=strip_size,
+            surfaces=surfaces,
+            joints=joints,
+            asset=asset_id,
+        )
+        house.furniture.append(f)
+        strips.append(f)
+    for j, child in enumerate(_list(o, "children", where, required=False)):
+        cx, cy = _xz(_need(child, "position", f"{where}.children[{j}]"), where)
+        holder = min(
+            strips,
+            key=lambda f: math.hypot(
+                max(f.footprint()[0] - cx, 0, cx - f.footprint()[2]),
+                max(f.footprint()[1] - cy, 0, cy - f.footprint()[3]),
+            ),
+        )
+        _import_object(house, child, f"{where}.children[{j}]", parent=holder)
 
 
 def read_procthor_houses(
