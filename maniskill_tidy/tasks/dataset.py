@@ -122,12 +122,7 @@ def generate_dataset(
         "generator_version": GENERATOR_VERSION,
         "schema_version": SCHEMA_VERSION,
     }
-    params_file = out / ".generate.json"
-    if params_file.exists() and json.loads(params_file.read_text()) != params:
-        raise DatasetError(
-            f"{out} holds a dataset made with other arguments "
-            f"({params_file.read_text().strip()}); use another --out"
-        )
+    params_file = refuse_other_arguments(out, params)
     write_atomic(params_file, json.dumps(params, sort_keys=True).encode())
 
     jobs, start = [], 0
@@ -168,6 +163,17 @@ def generate_dataset(
 PROCEDURAL_SOURCE = (
     "maniskill-tidy generate (procedural houses; knowledge derived from ProcTHOR, Apache-2.0)"
 )
+
+
+def refuse_other_arguments(out: Path, params: dict) -> Path:
+    """The file that records a dataset's arguments; a rerun resumes only with the same ones."""
+    params_file = out / ".generate.json"
+    if params_file.exists() and json.loads(params_file.read_text()) != params:
+        raise DatasetError(
+            f"{out} holds a dataset made with other arguments "
+            f"({params_file.read_text().strip()}); use another --out"
+        )
+    return params_file
 
 
 def write_manifest(

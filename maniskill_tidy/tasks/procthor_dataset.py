@@ -26,6 +26,7 @@ from maniskill_tidy.tasks.dataset import (
     SHARD_SIZE,
     SPLITS,
     DatasetError,
+    refuse_other_arguments,
     shard_bytes,
     write_atomic,
     write_manifest,
@@ -115,12 +116,7 @@ def generate_procthor_dataset(
         "importer_version": IMPORTER_VERSION,
         "schema_version": SCHEMA_VERSION,
     }
-    params_file = out / ".generate.json"
-    if params_file.exists() and json.loads(params_file.read_text()) != params:
-        raise DatasetError(
-            f"{out} holds a dataset made with other arguments "
-            f"({params_file.read_text().strip()}); use another --out"
-        )
+    params_file = refuse_other_arguments(out, params)
 
     rejected: dict[int, str] = {}
     problems: list[str] = []
