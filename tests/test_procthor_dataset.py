@@ -400,6 +400,12 @@ def test_l_and_c_shaped_counters_become_straight_ones_along_the_walls(n, shape, 
         front = (-math.sin(f.yaw), math.cos(f.yaw))
         to_centre = (centre[0] - f.position[0], centre[1] - f.position[1])
         assert front[0] * to_centre[0] + front[1] * to_centre[1] > 0, f.id
+    back, arms = pieces[0], pieces[1:]  # the back's cabinet stops where the arms hide it
+    _, cab = back.surface_world(back.surface("cabinet"))
+    axis = 0 if back.footprint()[2] - back.footprint()[0] > 1.0 else 1
+    for arm in arms:
+        fp = arm.footprint()
+        assert cab[axis + 2] <= fp[axis] + 1e-6 or cab[axis] >= fp[axis + 2] - 1e-6, arm.id
     on_counter = {c["id"].replace("|", "_") for c in counter.get("children", [])}
     ids = {f.id for f in pieces}
     for o in house.objects:

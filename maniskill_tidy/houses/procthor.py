@@ -339,6 +339,17 @@ def _import_shaped_counter(house, o, where, asset_id, position, yaw, size) -> No
             centre = [a[0] + inward, (lo + hi) / 2]
         strip_size = [hi - lo, ARM, h]
         surfaces, joints = parts_for("CounterTop", strip_size)
+        if k == 0:  # the back: its cabinet ends behind the arms are blind corners
+            arms = chosen[1:]
+            ends = ("west", "east") if horizontal else ("south", "north")
+            blind = [end in arms for end in ends]  # world low end, world high end
+            if edge in ("north", "west"):  # local +x runs towards the world's low end
+                blind.reverse()
+            for surface in surfaces:
+                if surface.name == "cabinet":
+                    cut_lo, cut_hi = (ARM if b else 0.0 for b in blind)
+                    surface.size[0] -= cut_lo + cut_hi
+                    surface.center[0] += (cut_lo - cut_hi) / 2
         f = Furniture(
             id=f"{_sid(_need(o, 'id', where))}_{edge}",
             type="CounterTop",

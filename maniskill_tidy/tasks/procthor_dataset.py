@@ -34,7 +34,7 @@ from maniskill_tidy.tasks.dataset import (
 from maniskill_tidy.tasks.metatask import SINGLE_FRACTION, generate_meta_tasks, single_schedule
 from maniskill_tidy.tasks.validate import check_task
 
-IMPORTER_VERSION = "3"  # 2: heights measured from the floor; 3: L- and C-shaped counters split
+IMPORTER_VERSION = "4"  # 2: heights from the floor; 3: L and C counters split; 4: blind corners
 REPAIR_STREAM = 200  # house_rng stream of the repairs' relocations
 DEFAULT_WEIGHTS = (4, 1, 1)  # the procedural generator's 80/20/20 proportions
 
