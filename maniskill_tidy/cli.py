@@ -235,7 +235,7 @@ def _policies(args: argparse.Namespace) -> int:
 
 
 def _export(args: argparse.Namespace) -> int:
-    from maniskill_tidy.houses.procthor_export import export_houses
+    from maniskill_tidy.houses.procthor_export import ON_LEFT_OUT, export_houses
     from maniskill_tidy.tasks.dataset import SPLITS, load_dataset, read_manifest
 
     if not args.out.endswith((".jsonl", ".jsonl.gz")):
@@ -246,9 +246,13 @@ def _export(args: argparse.Namespace) -> int:
     ]
     left_out = export_houses(houses, Path(args.out))
     print(f"wrote {args.out}: {len(houses)} houses in ProcTHOR's format")
-    if left_out:
-        what = ", ".join(f"{t} x{n}" for t, n in sorted(left_out.items()))
+    no_asset = {t: n for t, n in left_out.items() if ON_LEFT_OUT not in t}
+    carried = sum(n for t, n in left_out.items() if ON_LEFT_OUT in t)
+    if no_asset:
+        what = ", ".join(f"{t} x{n}" for t, n in sorted(no_asset.items()))
         print(f"  left out, no asset of their type in ProcTHOR's database: {what}")
+    if carried:
+        print(f"  left out with them: {carried} objects and pieces that stood on them")
     return 0
 
 

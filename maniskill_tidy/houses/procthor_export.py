@@ -24,6 +24,8 @@ from maniskill_tidy.knowledge import FLOOR
 from maniskill_tidy.knowledge.catalog import load_assets
 from maniskill_tidy.tasks.dataset import write_atomic
 
+ON_LEFT_OUT = "(on a piece left out)"
+
 
 @cache
 def _assets_by_type() -> dict[str, list[tuple[str, float, float, float]]]:
@@ -70,7 +72,8 @@ def _placed(item: Furniture | PlacedObject, asset: tuple[str, float]) -> dict:
 
 
 def export_house(house: House, left_out: Counter | None = None) -> dict:
-    """``house`` as a ProcTHOR house dict; counts what has no asset in ``left_out``."""
+    """``house`` as a ProcTHOR house dict; counts in ``left_out`` what has no asset, by type,
+    and what stood on such a piece, as "TYPE (on a piece left out)"."""
     left_out = left_out if left_out is not None else Counter()
     rooms = [
         {
@@ -132,16 +135,22 @@ def export_house(house: House, left_out: Counter | None = None) -> dict:
     for f in house.furniture:  # parents come before the pieces stacked on them
         asset = nearest_asset(f.type, f.size)
         parent = nodes.get(f.parent) if f.parent else None
-        if asset is None or (f.parent and parent is None):
+        if asset is None:
             left_out[f.type] += 1
+            continue
+        if f.parent and parent is None:
+            left_out[f"{f.type} {ON_LEFT_OUT}"] += 1
             continue
         nodes[f.id] = _placed(f, asset)
         (parent["children"] if parent else top).append(nodes[f.id])
     for o in house.objects:
         asset = nearest_asset(o.type, o.size)
         holder = nodes.get(o.receptacle) if o.receptacle != FLOOR else None
-        if asset is None or (o.receptacle != FLOOR and holder is None):
+        if asset is None:
             left_out[o.type] += 1
+            continue
+        if o.receptacle != FLOOR and holder is None:
+            left_out[f"{o.type} {ON_LEFT_OUT}"] += 1
             continue
         (holder["children"] if holder else top).append(_placed(o, asset))
     height = max((w.height for w in house.walls), default=2.5)
