@@ -10,7 +10,7 @@ import sapien
 
 from maniskill_tidy.envs.actions import MIN_PIXELS, REACH, AgentState
 from maniskill_tidy.houses.furnish import GAP, overlaps
-from maniskill_tidy.houses.objects import is_hanging
+from maniskill_tidy.houses.objects import is_hanging, stacked_footprints
 from maniskill_tidy.houses.schema import Furniture, Surface, rotated_bounds
 from maniskill_tidy.knowledge import FLOOR
 from maniskill_tidy.sim.house_scene import HouseScene, ObjectState, yaw_quat
@@ -25,11 +25,7 @@ class Manipulation:
         self.sizes = {o.id: o.size for o in hs.house.objects}
         self.types = {o.id: o.type for o in hs.house.objects}
         self.seg_of_object = {i.id: sid for sid, i in hs.instances.items() if i.kind == "object"}
-        # Pieces standing on a top (a plant on a dresser) take room there like objects do.
-        self.stacked: dict[str, list[tuple[float, float, float, float]]] = {}
-        for f in hs.house.furniture:
-            if f.parent:
-                self.stacked.setdefault(f.parent, []).append(f.footprint())
+        self.stacked = stacked_footprints(hs.house)  # a plant on a dresser takes room there
         self.furniture_of_seg: dict[int, str] = {}
         self.link_of_seg: dict[int, str] = {}
         for sid, inst in hs.instances.items():

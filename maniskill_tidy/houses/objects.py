@@ -76,6 +76,16 @@ def open_footprint(f) -> tuple[float, float, float, float]:
     return rotated_bounds(centre, f.size[0], f.size[1] + extra, f.yaw)
 
 
+def stacked_footprints(house: House) -> dict[str, list[tuple[float, float, float, float]]]:
+    """Footprints of the pieces standing on each piece's top (a microwave on a counter): they
+    take room there as objects do."""
+    out: dict[str, list] = {}
+    for f in house.furniture:
+        if f.parent:
+            out.setdefault(f.parent, []).append(f.footprint())
+    return out
+
+
 class ObjectPlacer:
     """Finds free spots for objects on surfaces and on the floor of one house."""
 
@@ -86,10 +96,7 @@ class ObjectPlacer:
         self.walkable = main_component(free)
         self.free = free
         self.slots = surface_slots(house)
-        self.children = {}
-        for f in house.furniture:
-            if f.parent:
-                self.children.setdefault(f.parent, []).append(f.footprint())
+        self.children = stacked_footprints(house)
 
     def obstacles(self, receptacle: str, surface: str | None, ignore: str | None = None) -> list:
         out = [

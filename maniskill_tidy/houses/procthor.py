@@ -196,13 +196,15 @@ def _import_house(d: dict, house_id: str) -> House:
     return house
 
 
+def _box_distance(bounds: tuple[float, float, float, float], x: float, y: float) -> float:
+    """Metres from (x, y) to the box ``bounds`` (x0, y0, x1, y1); 0 inside it."""
+    x0, y0, x1, y1 = bounds
+    return math.hypot(max(x0 - x, 0, x - x1), max(y0 - y, 0, y - y1))
+
+
 def _outside(house: House, x: float, y: float) -> float:
     """Metres from (x, y) to the nearest room's bounding box (0 inside one)."""
-    out = []
-    for r in house.rooms:
-        x0, y0, x1, y1 = r.bounds()
-        out.append(math.hypot(max(x0 - x, 0, x - x1), max(y0 - y, 0, y - y1)))
-    return min(out)
+    return min(_box_distance(r.bounds(), x, y) for r in house.rooms)
 
 
 def _room_of(house: House, x: float, y: float) -> str:
@@ -365,13 +367,7 @@ def _import_shaped_counter(house, o, where, asset_id, position, yaw, size) -> No
         strips.append(f)
     for j, child in enumerate(_list(o, "children", where, required=False)):
         cx, cy = _xz(_need(child, "position", f"{where}.children[{j}]"), where)
-        holder = min(
-            strips,
-            key=lambda f: math.hypot(
-                max(f.footprint()[0] - cx, 0, cx - f.footprint()[2]),
-                max(f.footprint()[1] - cy, 0, cy - f.footprint()[3]),
-            ),
-        )
+        holder = min(strips, key=lambda f: _box_distance(f.footprint(), cx, cy))
         _import_object(house, child, f"{where}.children[{j}]", parent=holder)
 
 

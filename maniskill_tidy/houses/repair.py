@@ -44,7 +44,7 @@ from maniskill_tidy.houses.objects import (
     is_hanging,
     surface_slots,
 )
-from maniskill_tidy.houses.schema import Furniture, House, PlacedObject, rotated_bounds
+from maniskill_tidy.houses.schema import Furniture, House, PlacedObject
 from maniskill_tidy.knowledge import load_placement
 
 MIN_OBJECTS = 5  # a meta-task misplaces up to 5 objects
@@ -137,9 +137,9 @@ def _connect(house: House, log: RepairLog) -> None:
 
 
 def _drop_unreachable(house: House, log: RepairLog) -> None:
-    """Drop pieces with a surface whose middle no robot can reach: PickUp and PutDown aim at a
-    point from a cell within their reach (an L-shaped counter imported as its bounding box is
-    a block 2.3 m deep)."""
+    """Drop pieces with a surface no free cell reaches, or whose middle no robot can reach:
+    PickUp and PutDown aim at a point from a cell within their reach (a piece imported as one
+    deep block, as L-shaped counters were before the importer split them, fails this)."""
     while True:
         frame, free = compute_free(house)
         walkable = main_component(free)
@@ -162,7 +162,7 @@ def _middle(slot: SurfaceSlot) -> tuple[float, float, float, float]:
 def _set_down(o: PlacedObject, slot: SurfaceSlot) -> PlacedObject | None:
     """``o`` slid inside ``slot``'s bounds and resting on it, or None if it is too big."""
     x0, y0, x1, y1 = slot.bounds
-    fx0, fy0, fx1, fy1 = rotated_bounds(o.position, o.size[0], o.size[1], o.yaw)
+    fx0, fy0, fx1, fy1 = o.footprint()
     hw, hd = (fx1 - fx0) / 2, (fy1 - fy0) / 2
     if 2 * hw > x1 - x0 + TOL or 2 * hd > y1 - y0 + TOL:
         return None
