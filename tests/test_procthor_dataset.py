@@ -15,7 +15,7 @@ import pytest
 from maniskill_tidy.houses.furnish import overlaps
 from maniskill_tidy.houses.generator import house_rng
 from maniskill_tidy.houses.navgrid import blocks_navigation
-from maniskill_tidy.houses.objects import surface_slots
+from maniskill_tidy.houses.objects import stacked_footprints, surface_slots
 from maniskill_tidy.houses.procthor import import_house, read_procthor_houses
 from maniskill_tidy.houses.repair import MIN_OBJECTS, HouseRejected, make_sound
 from maniskill_tidy.houses.schema import Furniture
@@ -27,6 +27,7 @@ from maniskill_tidy.tasks.dataset import (
     write_atomic,
     write_manifest,
 )
+from maniskill_tidy.tasks.procthor_dataset import REPAIR_STREAM
 from maniskill_tidy.tasks.validate import check_house, physics_problems, validate_dataset
 from tests.conftest import DATA
 from tests.test_cli_errors import cli, one_line_error
@@ -414,3 +415,35 @@ def test_l_and_c_shaped_counters_become_straight_ones_along_the_walls(n, shape, 
     sound, log = make_sound(house, np.random.default_rng(0))
     assert not set(log.furniture_dropped) & ids  # the strips stay
     assert any(o.receptacle in ids for o in sound.objects)
+
+
+def _house_332():
+    """ProcTHOR's house 332 as `generate --procthor` repairs it: an L-shaped counter split into
+    two strips, with a microwave on one strip overhanging the other."""
+    raw = json.loads(gzip.decompress((DATA / "procthor-house-332.jsonl.gz").read_bytes()))
+    house, _ = make_sound(import_house(raw, "procthor_00332"), house_rng(0, 332, REPAIR_STREAM))
+    microwave = next(f for f in house.furniture if f.type == "Microwave")
+    strip = next(f for f in house.furniture if f.type == "CounterTop" and f.id != microwave.parent)
+    _, top = strip.surface_world(strip.surface("top"))
+    assert overlaps(microwave.footprint(), top, -1e-3), "the microwave no longer overhangs"
+    return house, microwave, strip
+
+
+def test_a_piece_overhanging_a_neighbouring_top_takes_room_there_too():
+    """In the 500 sample houses a pan was put under such an overhang and rose 5 cm when physics
+    settled (`validate --physics`): objects on the other strip must keep clear of it."""
+    house, microwave, strip = _house_332()
+    assert microwave.footprint() in stacked_footprints(house)[strip.id]
+    assert check_house(house) == []
+    for o in house.objects:
+        if o.surface == "top":
+            assert not overlaps(o.footprint(), microwave.footprint(), -1e-3), o.id
+
+
+def test_validate_flags_an_object_under_a_piece_standing_on_its_surface():
+    house, microwave, strip = _house_332()
+    o = next(o for o in house.objects if (o.receptacle, o.surface) == (strip.id, "top"))
+    x0, y0, x1, y1 = microwave.footprint()
+    o.position = [(x0 + x1) / 2, y0, o.position[2]]  # half under the microwave's overhang
+    problems = check_house(house)
+    assert any(o.id in p and f"inside a piece standing on {strip.id}" in p for p in problems)

@@ -78,11 +78,23 @@ def open_footprint(f) -> tuple[float, float, float, float]:
 
 def stacked_footprints(house: House) -> dict[str, list[tuple[float, float, float, float]]]:
     """Footprints of the pieces standing on each piece's top (a microwave on a counter): they
-    take room there as objects do."""
+    take room there as objects do. A piece that overhangs its parent onto a neighbouring top
+    (a microwave across the joint of an L-shaped counter's two strips) takes room on both."""
+    tops = [
+        (g.id, *g.surface_world(s)) for g in house.furniture for s in g.surfaces if s.name == "top"
+    ]
     out: dict[str, list] = {}
     for f in house.furniture:
-        if f.parent:
-            out.setdefault(f.parent, []).append(f.footprint())
+        if not f.parent:
+            continue
+        fp, base, top = f.footprint(), f.position[2], f.position[2] + f.size[2]
+        under = {f.parent} | {
+            gid
+            for gid, centre, bounds in tops
+            if gid != f.id and base - 0.05 <= centre[2] < top and overlaps(fp, bounds, -1e-3)
+        }
+        for gid in sorted(under):
+            out.setdefault(gid, []).append(fp)
     return out
 
 

@@ -34,7 +34,9 @@ from maniskill_tidy.tasks.dataset import (
 from maniskill_tidy.tasks.metatask import SINGLE_FRACTION, generate_meta_tasks, single_schedule
 from maniskill_tidy.tasks.validate import check_task
 
-IMPORTER_VERSION = "4"  # 2: heights from the floor; 3: L and C counters split; 4: blind corners
+# 2: heights from the floor; 3: L and C counters split; 4: blind corners; 5: a piece that
+# overhangs a neighbouring top takes room there
+IMPORTER_VERSION = "5"
 REPAIR_STREAM = 200  # house_rng stream of the repairs' relocations
 DEFAULT_WEIGHTS = (4, 1, 1)  # the procedural generator's 80/20/20 proportions
 

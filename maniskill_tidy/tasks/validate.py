@@ -23,7 +23,7 @@ from maniskill_tidy.houses.navgrid import (
     main_component,
     reach_cells,
 )
-from maniskill_tidy.houses.objects import surface_slots
+from maniskill_tidy.houses.objects import stacked_footprints, surface_slots
 from maniskill_tidy.houses.schema import (
     CELL,
     House,
@@ -87,6 +87,7 @@ def check_house(house: House) -> list[str]:
                 f"of every free cell"
             )
     by_surface: dict[tuple, list] = {}
+    stacked = stacked_footprints(house)
     for o in house.objects:
         slot = _slot_of(house, o.receptacle, o.surface)
         if slot is None:
@@ -104,6 +105,10 @@ def check_house(house: House) -> list[str]:
         for other in by_surface.get((o.receptacle, o.surface), []):
             if overlaps(fp, other.footprint(), -TOL):
                 problems.append(f"{where}: objects {o.id} and {other.id} interpenetrate")
+        if o.surface == "top" and any(
+            overlaps(fp, piece, -TOL) for piece in stacked.get(o.receptacle, [])
+        ):
+            problems.append(f"{where}: object {o.id} is inside a piece standing on {o.receptacle}")
         by_surface.setdefault((o.receptacle, o.surface), []).append(o)
         if not reach_cells(frame, walkable, fp).any():
             problems.append(f"{where}: object {o.id} is out of reach")
