@@ -76,7 +76,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--houses", type=int, default=120)
     parser.add_argument(
-        "--only", choices=("generation", "env", "map", "map-accuracy", "eval"), default=None
+        "--only",
+        choices=("generation", "env", "map", "map-accuracy", "eval", "throughput"),
+        default=None,
     )
     parser.add_argument("--eval-dataset", help="dataset for the eval row (default: shipped one)")
     parser.add_argument(
@@ -91,6 +93,13 @@ def main(argv: list[str] | None = None) -> int:
         print(report(bench_eval(dataset=args.eval_dataset)))
         print()
         if args.only == "eval":
+            return 0
+    if args.only in (None, "throughput"):
+        from maniskill_tidy.eval.benchmark import bench_throughput, report_throughput
+
+        print(report_throughput(bench_throughput(dataset=args.eval_dataset)))
+        print()
+        if args.only == "throughput":
             return 0
     if args.only in (None, "map-accuracy"):
         from maniskill_tidy.perception.accuracy import bench_map_accuracy, report

@@ -51,6 +51,7 @@ def _generate(args: argparse.Namespace) -> int:
         counts,
         workers=args.workers,
         single_fraction=args.single_fraction,
+        ray=args.ray,
     )
     elapsed = time.perf_counter() - start
     print(
@@ -73,6 +74,7 @@ def _generate_procthor(args: argparse.Namespace) -> int:
         limit=args.houses,
         workers=args.workers,
         single_fraction=args.single_fraction,
+        ray=args.ray,
     )
     elapsed = time.perf_counter() - start
     read = manifest["source"]["houses_read"]
@@ -103,7 +105,12 @@ def _eval(args: argparse.Namespace) -> int:
         task_type=args.task_type,
     )
     summary = evaluate(
-        cfg, Path(args.out), workers=args.workers, record=args.record, images=args.images
+        cfg,
+        Path(args.out),
+        workers=args.workers,
+        record=args.record,
+        images=args.images,
+        ray=args.ray,
     )
     rows = summary["metrics"]
     print(
@@ -156,7 +163,7 @@ def _demos(args: argparse.Namespace) -> int:
         out = Path(args.out or "data/demos")
         cfg = DemoConfig(args.setting, args.split, args.starts, args.tasks_per_house,
                          args.houses, args.seed, args.teacher)  # fmt: skip
-        m = build_demo_features(out, args.dataset, cfg, workers=args.workers)
+        m = build_demo_features(out, args.dataset, cfg, workers=args.workers, ray=args.ray)
         folder = out / f"setting_{args.setting}" / args.split
         print(
             f"{m['trajectories']} trajectories ({m['rows']} agent-steps, "
@@ -164,6 +171,8 @@ def _demos(args: argparse.Namespace) -> int:
             f"in {folder}"
         )
         return 0
+    if args.ray:
+        raise ValueError("--ray spreads the rendering of --features; add --features")
     from maniskill_tidy.training.demonstrations import write_demonstrations
 
     args.out = args.out or "data/trajectories"
@@ -408,6 +417,17 @@ def _episode_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--episode", default="0", help="index or id in the split")
 
 
+def _ray_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--ray",
+        nargs="?",
+        const="local",
+        metavar="ADDRESS",
+        help="run the workers as Ray actors: alone, a local Ray instance with --workers CPUs; "
+        "with the address of a running cluster (ray start --head), --workers actors there",
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="maniskill-tidy", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -430,6 +450,7 @@ def build_parser() -> argparse.ArgumentParser:
         "proportions of the kept houses (default 4,1,1)",
     )
     g.add_argument("--workers", type=int, default=1)
+    _ray_option(g)
     g.add_argument(
         "--single-fraction",
         type=float,
@@ -519,6 +540,7 @@ def build_parser() -> argparse.ArgumentParser:
         "(an evenly spread subset)",
     )
     ev.add_argument("--workers", type=int, default=1)
+    _ray_option(ev)
     ev.add_argument("--record", default="none", choices=("none", "failures", "all"))
     ev.add_argument("--dataset", help="dataset directory (default: the env's shipped dataset)")
     ev.add_argument("--seed", type=int, default=0)
@@ -557,6 +579,7 @@ def build_parser() -> argparse.ArgumentParser:
     dm.add_argument("--tasks-per-house", type=int, help="with --features: meta-tasks per house")
     dm.add_argument("--houses", type=int, help="with --features: only the first N houses")
     dm.add_argument("--workers", type=int, default=2, help="with --features: rendering processes")
+    _ray_option(dm)
     dm.add_argument(
         "--teacher", default="expert",
         help="with --features: the team whose labels are imitated (expert, heuristic-*)",
@@ -611,6 +634,10 @@ def main(argv: list[str] | None = None) -> int:
 
     args = build_parser().parse_args(argv)
     try:
+        if getattr(args, "ray", None):  # before anything is written
+            from maniskill_tidy.parallel import check_ray
+
+            check_ray(args.ray)
         return args.func(args)
     except (DatasetError, ProcTHORImportError, ValueError, KeyError, OSError) as err:
         message = err.args[0] if isinstance(err, KeyError) and err.args else err

@@ -20,10 +20,8 @@ import json
 import os
 import subprocess
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from contextlib import contextmanager
 from dataclasses import dataclass
-from multiprocessing import get_context
 from pathlib import Path
 
 import numpy as np
@@ -31,6 +29,7 @@ from tqdm import tqdm
 
 from maniskill_tidy.eval.episode import play_episode
 from maniskill_tidy.eval.metrics import EpisodeRecord, summarize
+from maniskill_tidy.parallel import run_jobs
 from maniskill_tidy.policies import make_team, team_class
 from maniskill_tidy.policies.channel import CENTRAL
 from maniskill_tidy.tasks.dataset import write_atomic
@@ -111,25 +110,15 @@ def run_episode(env, team, index: int, seed: int, recorder=None) -> EpisodeRecor
 _worker: dict = {}
 
 
-def _die_with_parent() -> None:
-    """Linux: a worker gets SIGTERM when the runner dies (else a killed run leaves it running)."""
-    try:
-        import ctypes
-        import signal
-
-        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, int(signal.SIGTERM))  # PDEATHSIG
-    except (OSError, AttributeError):
-        pass
-
-
-def _init_pool_worker(*args) -> None:
-    _die_with_parent()
-    _init_worker(*args)
-
-
-def _init_worker(cfg: RunConfig, images: bool, record: str, out: str) -> None:
+def _init_worker(cfg: RunConfig, images: bool, record: str, out: str):
     _worker.update(cfg=cfg, env=make_env(cfg, images), team=make_team(cfg.policy))
     _worker.update(record=record, out=out, images=images)
+    return _close_worker
+
+
+def _close_worker() -> None:
+    _worker["env"].close()
+    _worker.clear()
 
 
 def _work(index: int) -> EpisodeRecord:
@@ -237,8 +226,12 @@ def evaluate(
     record: str = "none",
     progress: bool = True,
     images: bool = False,
+    ray: str | None = None,
 ) -> dict:
-    """Run (or resume) an evaluation and write its summary; returns the summary."""
+    """Run (or resume) an evaluation and write its summary; returns the summary.
+
+    ``ray``: play the episodes on Ray actors ("local" or a cluster's address, see
+    :mod:`maniskill_tidy.parallel`) instead of ``workers`` local processes."""
     team_cls = team_class(cfg.policy)  # a one-line error for an unknown policy
     if record not in RECORD_MODES:
         raise ValueError(f"--record must be one of {RECORD_MODES}, got {record!r}")
@@ -312,23 +305,15 @@ def evaluate(
                 bar.update(1)
                 bar.set_postfix(success=f"{np.mean([x.success for x in records]):.3f}")
 
-            if todo and workers <= 1:
-                _init_worker(cfg, images, record, str(out))
-                for i in todo:
-                    keep(_work(i))
-                _worker["env"].close()
-                _worker.clear()
-            elif todo:
-                ctx = get_context("spawn")
-                with ProcessPoolExecutor(
-                    workers,
-                    mp_context=ctx,
-                    initializer=_init_pool_worker,
-                    initargs=(cfg, images, record, str(out)),
-                ) as pool:
-                    futures = [pool.submit(_work, i) for i in todo]
-                    for fut in as_completed(futures):
-                        keep(fut.result())
+            for _, record_ in run_jobs(
+                todo,
+                _work,
+                workers,
+                init=_init_worker,
+                initargs=(cfg, images, record, str(out)),
+                ray=ray,
+            ):
+                keep(record_)
         bar.close()
         elapsed = time.perf_counter() - started
         if todo:  # wall time and code versions accumulate over the sessions that ran episodes
@@ -360,6 +345,7 @@ def evaluate(
             "metrics": summarize(records),
             "wall_seconds": run_info["wall_seconds"],  # summed over sessions that ran episodes
             "workers": workers,
+            "ray": ray,  # None: local processes; "local" or the cluster's address
             "obs_mode": cfg.env_kwargs(images)["obs_mode"],
             "episode_seconds_mean": round(float(np.mean([r.seconds for r in records])), 3),
             "central_endpoint": CENTRAL if getattr(team_cls, "central", False) else None,

@@ -19,7 +19,6 @@ import io
 import json
 import os
 from collections.abc import Iterator
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -27,6 +26,7 @@ from tqdm import tqdm
 
 from maniskill_tidy.houses.generator import generate_house
 from maniskill_tidy.houses.schema import SCHEMA_VERSION, House, house_from_dict
+from maniskill_tidy.parallel import run_jobs
 from maniskill_tidy.tasks.metatask import (
     SINGLE_FRACTION,
     MetaTask,
@@ -104,10 +104,12 @@ def generate_dataset(
     workers: int = 1,
     progress: bool = True,
     single_fraction: float = SINGLE_FRACTION,
+    ray: str | None = None,
 ) -> dict:
     """Generate (or resume) a dataset in ``out``; returns the manifest.
 
-    ``single_fraction``: the share of meta-tasks meant to be Single (default the paper's)."""
+    ``single_fraction``: the share of meta-tasks meant to be Single (default the paper's);
+    ``ray``: build the shards on Ray actors (see :mod:`maniskill_tidy.parallel`)."""
     out = Path(out)
     if n_houses < 1:
         raise ValueError(f"--houses must be at least 1, got {n_houses}")
@@ -144,18 +146,10 @@ def generate_dataset(
         disable=not progress,
         initial=n_houses - sum(a[3] - a[2] for _, a in todo),
     )
-    if workers > 1 and len(todo) > 1:
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            for (name, _), result in zip(
-                todo, pool.map(_make_shard, [a for _, a in todo]), strict=True
-            ):
-                write_atomic(out / name, result[3])
-                bar.update(result[1])
-    else:
-        for name, a in todo:
-            result = _make_shard(a)
-            write_atomic(out / name, result[3])
-            bar.update(result[1])
+    names = {a: name for name, a in todo}
+    for a, result in run_jobs([a for _, a in todo], _make_shard, workers, ray=ray):
+        write_atomic(out / names[a], result[3])
+        bar.update(result[1])
     bar.close()
     return write_manifest(out, params, [name for name, _ in jobs])
 

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 from tqdm import tqdm
@@ -22,6 +21,7 @@ from maniskill_tidy.houses.generator import house_rng
 from maniskill_tidy.houses.procthor import read_procthor_houses
 from maniskill_tidy.houses.repair import HouseRejected, make_sound
 from maniskill_tidy.houses.schema import SCHEMA_VERSION, house_from_dict
+from maniskill_tidy.parallel import run_jobs
 from maniskill_tidy.tasks.dataset import (
     SHARD_SIZE,
     SPLITS,
@@ -70,18 +70,12 @@ def _tasks(job: tuple[int, int, dict, list[int]]) -> tuple[int, list[dict] | Non
     return n, [t.to_dict() for t in tasks], None
 
 
-def _map(fn, jobs: list, workers: int, desc: str, progress: bool) -> list:
+def _map(fn, jobs: list, workers: int, desc: str, progress: bool, ray: str | None) -> list:
     bar = tqdm(total=len(jobs), unit="house", desc=desc, disable=not progress)
     out = []
-    if workers > 1 and len(jobs) > 1:
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            for r in pool.map(fn, jobs, chunksize=4):
-                out.append(r)
-                bar.update()
-    else:
-        for job in jobs:
-            out.append(fn(job))
-            bar.update()
+    for _, result in run_jobs(jobs, fn, workers, ray=ray, ordered=True):
+        out.append(result)
+        bar.update()
     bar.close()
     return out
 
@@ -95,9 +89,11 @@ def generate_procthor_dataset(
     workers: int = 1,
     progress: bool = True,
     single_fraction: float = SINGLE_FRACTION,
+    ray: str | None = None,
 ) -> dict:
     """Build a dataset in ``out`` from the ProcTHOR houses of ``source`` (at most ``limit``
-    of them, from the top of the file); returns the manifest."""
+    of them, from the top of the file); returns the manifest. ``ray``: on Ray actors (see
+    :mod:`maniskill_tidy.parallel`)."""
     source, out = Path(source), Path(out)
     if not source.is_file():
         raise FileNotFoundError(f"--procthor {source}: no such ProcTHOR house file")
@@ -128,7 +124,7 @@ def generate_procthor_dataset(
     jobs = [(seed, int(h.id.split("_")[1]), h.to_dict()) for h in imported]
     repaired = {}
     repairs: dict[str, int] = {}
-    for n, house, counts, reason in _map(_repair, jobs, workers, "repair", progress):
+    for n, house, counts, reason in _map(_repair, jobs, workers, "repair", progress, ray):
         if reason is not None:
             rejected[n] = reason
             continue
@@ -147,7 +143,7 @@ def generate_procthor_dataset(
     )
     task_jobs = [(seed, n, repaired[n], sorted(schedule[n])) for n in order]
     tasks = {}
-    for n, house_tasks, reason in _map(_tasks, task_jobs, workers, "meta-tasks", progress):
+    for n, house_tasks, reason in _map(_tasks, task_jobs, workers, "meta-tasks", progress, ray):
         if reason is not None:
             rejected[n] = reason
         else:

@@ -195,7 +195,7 @@ def _init(dataset: str | None, cfg: DemoConfig):
     return env.close
 
 
-def _house_demos(job: tuple[str, list[int], str]) -> None:
+def _house_demos(job: tuple[str, list[int], str]) -> tuple[str, bytes]:
     from maniskill_tidy.eval.episode import play_episode
     from maniskill_tidy.policies import make_team
 
@@ -208,7 +208,7 @@ def _house_demos(job: tuple[str, list[int], str]) -> None:
     buf = io.BytesIO()
     seconds = np.array(time.perf_counter() - started)  # this house, one process
     np.savez_compressed(buf, **recorder.arrays(house), seconds=seconds)
-    write_atomic(Path(shard), buf.getvalue())
+    return shard, buf.getvalue()  # written by the driver (a Ray actor may be on another node)
 
 
 def select_episodes(episodes, cfg: DemoConfig) -> dict[str, list[int]]:
@@ -230,7 +230,12 @@ def select_episodes(episodes, cfg: DemoConfig) -> dict[str, list[int]]:
 
 
 def build_demo_features(
-    out: Path, dataset: str | None, cfg: DemoConfig, workers: int = 1, progress: bool = True
+    out: Path,
+    dataset: str | None,
+    cfg: DemoConfig,
+    workers: int = 1,
+    progress: bool = True,
+    ray: str | None = None,
 ) -> dict:
     """Write ``out/setting_S/SPLIT/house_*.npz`` (resumable per house); return the manifest."""
     import gymnasium as gym
@@ -263,7 +268,7 @@ def build_demo_features(
     ]
     bar = tqdm(total=len(by_house), initial=len(by_house) - len(jobs), unit="house",
                desc=f"demos {cfg.setting} {cfg.split}", disable=not progress)  # fmt: skip
-    seconds = run_house_jobs(jobs, _init, (dataset, cfg), _house_demos, workers, bar)
+    seconds = run_house_jobs(jobs, _init, (dataset, cfg), _house_demos, workers, bar, ray)
     counts = {"trajectories": 0, "successes": 0, "rows": 0, "detections": 0, "bytes": 0}
     timed = {"houses": 0, "trajectories": 0, "seconds": 0.0}  # shards that say how long
     for shard in sorted(directory.glob("house_*.npz")):

@@ -1,6 +1,6 @@
 """Rendering work split by house: one shard per house, written atomically, a rerun skips the
-finished ones; one process pool (SAPIEN allows one renderer per process, so each worker builds
-its env once); one hash over the shards for the manifest."""
+finished ones; the workers of :mod:`maniskill_tidy.parallel` (SAPIEN allows one renderer per
+process, so each worker builds its env once); one hash over the shards for the manifest."""
 
 from __future__ import annotations
 
@@ -8,21 +8,20 @@ import hashlib
 import json
 import time
 from collections.abc import Callable
-from multiprocessing import get_context
 from pathlib import Path
 
 from tqdm import tqdm
 
+from maniskill_tidy.parallel import run_jobs
+from maniskill_tidy.tasks.dataset import write_atomic
+
 
 def worker_env(dataset: str | None, setting: str, split: str):
-    """A worker's env, with every camera image (made once per process; the process dies with
-    its parent)."""
+    """A worker's env, with every camera image (made once per process)."""
     import gymnasium as gym
 
     import maniskill_tidy  # noqa: F401  (registers the env)
-    from maniskill_tidy.eval.runner import _die_with_parent
 
-    _die_with_parent()
     return gym.make(
         "HeteroTidy-v1",
         setting=setting,
@@ -40,26 +39,15 @@ def run_house_jobs(
     work: Callable,
     workers: int,
     bar: tqdm,
+    ray: str | None = None,
 ) -> float:
-    """Run ``work(job)`` for every job (in ``workers`` processes, each set up by ``init``);
-    returns the wall time in seconds."""
+    """Run ``work(job)`` for every job (in ``workers`` processes or Ray actors, each set up by
+    ``init``; see :mod:`maniskill_tidy.parallel`) and write the ``(path, bytes)`` it returns
+    atomically, here; returns the wall time in seconds."""
     started = time.perf_counter()
-    if jobs and workers <= 1:
-        close = init(*initargs)
-        for job in jobs:
-            work(job)
-            bar.update(1)
-        if callable(close):
-            close()
-    elif jobs:
-        from concurrent.futures import ProcessPoolExecutor, as_completed
-
-        with ProcessPoolExecutor(
-            workers, mp_context=get_context("spawn"), initializer=init, initargs=initargs
-        ) as pool:
-            for fut in as_completed([pool.submit(work, j) for j in jobs]):
-                fut.result()
-                bar.update(1)
+    for _, (shard, data) in run_jobs(jobs, work, workers, init=init, initargs=initargs, ray=ray):
+        write_atomic(Path(shard), data)
+        bar.update(1)
     bar.close()
     return time.perf_counter() - started if jobs else 0.0
 

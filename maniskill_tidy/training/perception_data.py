@@ -211,7 +211,7 @@ def _init(dataset: str | None, cfg: ViewsConfig):
     return env.close
 
 
-def _house_views(job: tuple[str, list[int], str]) -> tuple[str, int, int]:
+def _house_views(job: tuple[str, list[int], str]) -> tuple[str, bytes]:
     from maniskill_tidy.eval.episode import play_episode
     from maniskill_tidy.policies.expert import ExpertTeam
 
@@ -223,12 +223,16 @@ def _house_views(job: tuple[str, list[int], str]) -> tuple[str, int, int]:
     arrays = collector.arrays(house)
     buf = io.BytesIO()
     np.savez_compressed(buf, **arrays)
-    write_atomic(Path(shard), buf.getvalue())
-    return house, len(arrays["room"]), len(arrays["det_type"])
+    return shard, buf.getvalue()  # written by the driver (a Ray actor may be on another node)
 
 
 def build_views(
-    out: Path, dataset: str | None, cfg: ViewsConfig, workers: int = 1, progress: bool = True
+    out: Path,
+    dataset: str | None,
+    cfg: ViewsConfig,
+    workers: int = 1,
+    progress: bool = True,
+    ray: str | None = None,
 ) -> dict:
     """Write ``out/SPLIT/house_*.npz`` (resumable per house) and return the manifest."""
     import gymnasium as gym
@@ -265,7 +269,7 @@ def build_views(
     ]
     bar = tqdm(total=len(by_house), initial=len(by_house) - len(jobs), unit="house",
                desc=f"views {cfg.split}", disable=not progress)  # fmt: skip
-    seconds = run_house_jobs(jobs, _init, (dataset, cfg), _house_views, workers, bar)
+    seconds = run_house_jobs(jobs, _init, (dataset, cfg), _house_views, workers, bar, ray)
     frames = detections = 0
     for shard in sorted(directory.glob("house_*.npz")):
         with np.load(shard) as z:

@@ -1,0 +1,222 @@
+"""One way to spread jobs over processes: in this process, a local process pool, or Ray actors.
+
+Every parallel command (eval, demonstrations, perception views, dataset generation) hands its
+jobs to :func:`run_jobs`. Each worker is set up once by ``init`` (SAPIEN allows one renderer per
+process, so a worker builds its env once and never pickles it) and then runs ``work(job)`` for
+many jobs; results stream back as they finish, so callers append them to their resumable files.
+
+With ``ray`` a worker is a Ray actor, on a local Ray instance (``ray="local"``, ``workers``
+CPUs) or on a running cluster (``ray="ADDRESS"``, ``workers`` actors). An actor that dies (its
+process killed, its node lost) is replaced and its job run again on the new one; a job that kills
+:data:`MAX_ATTEMPTS` actors in a row stops the run with its name. Ray hides GPUs from actors that
+do not ask for one (it sets ``CUDA_VISIBLE_DEVICES`` to empty), so on a cluster with GPUs each
+actor asks for a share of one and SAPIEN can render through CUDA there.
+"""
+
+from __future__ import annotations
+
+import os
+import socket
+from collections import deque
+from collections.abc import Callable, Iterable, Iterator
+from typing import Any
+
+MAX_ATTEMPTS = 3  # actors one job may lose before the run stops
+LOCAL = "local"  # --ray without an address: start a Ray instance on this machine
+
+
+def die_with_parent() -> None:
+    """Linux: a worker gets SIGTERM when the runner dies (else a killed run leaves it running)."""
+    try:
+        import ctypes
+        import signal
+
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, int(signal.SIGTERM))  # PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+
+
+def _pool_init(init: Callable | None, initargs: tuple) -> None:
+    die_with_parent()
+    if init is not None:
+        init(*initargs)
+
+
+def run_jobs(
+    jobs: Iterable,
+    work: Callable[[Any], Any],
+    workers: int = 1,
+    init: Callable | None = None,
+    initargs: tuple = (),
+    ray: str | None = None,
+    ordered: bool = False,
+) -> Iterator[tuple[Any, Any]]:
+    """Yield ``(job, work(job))`` for every job, as they finish (in job order if ``ordered``).
+
+    ``init(*initargs)`` sets up each worker once; in this process (``workers`` 1, no Ray) a
+    callable it returns is called at the end (to close the env)."""
+    jobs = list(jobs)
+    if not jobs:
+        return
+    if ray is not None:
+        yield from _ray_jobs(jobs, work, workers, init, initargs, ray, ordered)
+    elif workers <= 1:
+        close = init(*initargs) if init is not None else None
+        try:
+            for job in jobs:
+                yield job, work(job)
+        finally:
+            if callable(close):
+                close()
+    else:
+        from concurrent.futures import ProcessPoolExecutor, as_completed
+        from multiprocessing import get_context
+
+        with ProcessPoolExecutor(
+            min(workers, len(jobs)),
+            mp_context=get_context("spawn"),
+            initializer=_pool_init,
+            initargs=(init, initargs),
+        ) as pool:
+            futures = {pool.submit(work, job): job for job in jobs}
+            done = futures if ordered else as_completed(futures)
+            for fut in done:
+                yield futures[fut], fut.result()
+
+
+# ---------------------------------------------------------------------- Ray
+class JobActor:
+    """One Ray worker process: set up once, then runs jobs."""
+
+    def __init__(self, cwd: str, init: Callable | None, initargs: tuple) -> None:
+        if os.path.isdir(cwd):  # relative paths (a dataset folder) mean what they meant there
+            os.chdir(cwd)
+        self.close = init(*initargs) if init is not None else None
+
+    def run(self, work: Callable, job: Any) -> Any:
+        return work(job)
+
+    def pid(self) -> int:
+        return os.getpid()
+
+
+def check_ray(address: str) -> None:
+    """A one-line error unless Ray is installed and, for an address, something answers there."""
+    if address != LOCAL and "RAY_AUTH_MODE" not in os.environ and _token_available():
+        # `ray start` makes clusters with token authentication; a driver joining one sends the
+        # token (~/.ray/auth_token, RAY_AUTH_TOKEN or RAY_AUTH_TOKEN_PATH) only when the mode is
+        # set before ray is imported, else it retries on "InvalidAuthToken" until it gives up.
+        os.environ["RAY_AUTH_MODE"] = "token"
+    try:
+        import ray  # noqa: F401
+    except ImportError:
+        raise ValueError("--ray needs the ray package: pip install 'maniskill-tidy[ray]'") from None
+    if address != LOCAL:
+        _probe(address)  # ray.init waits minutes for an address where nothing listens
+
+
+def start_ray(address: str, workers: int) -> bool:
+    """Join the cluster at ``address``, or start a local instance with ``workers`` CPUs; True
+    if this call started Ray (and so should shut it down)."""
+    check_ray(address)
+    import ray
+
+    if ray.is_initialized():
+        return False
+    common = {"include_dashboard": False, "log_to_driver": False, "configure_logging": False}
+    if address == LOCAL:
+        # Ray starts its workers niced (15 by default): beside any other busy process on this
+        # machine the actors then got an eighth of the time that pool workers get.
+        os.environ.setdefault("RAY_worker_niceness", "0")
+        ray.init(num_cpus=workers, object_store_memory=200 * 2**20, **common)
+    else:
+        try:
+            ray.init(address=address, **common)
+        except (ConnectionError, ValueError, RuntimeError) as e:
+            raise ValueError(
+                f"--ray {address}: no Ray cluster answers there ({str(e).splitlines()[0]}); "
+                f"expected {EXAMPLE}"
+            ) from None
+    return True
+
+
+def _token_available() -> bool:
+    path = os.environ.get("RAY_AUTH_TOKEN_PATH") or os.path.expanduser("~/.ray/auth_token")
+    return bool(os.environ.get("RAY_AUTH_TOKEN")) or os.path.isfile(path)
+
+
+EXAMPLE = "the address `ray start --head` printed, such as 10.0.0.5:6379"
+
+
+def _probe(address: str, timeout: float = 5.0) -> None:
+    """A one-line error unless something listens at a HOST:PORT address ("auto" and ray://
+    addresses are left to Ray)."""
+    if address == "auto" or "://" in address:
+        return
+    host, sep, port = address.rpartition(":")
+    if not sep or not host or not port.isdigit():
+        raise ValueError(f"--ray {address!r}: expected {EXAMPLE}")
+    try:
+        socket.create_connection((host, int(port)), timeout=timeout).close()
+    except OSError as e:
+        raise ValueError(
+            f"--ray {address}: nothing answers there ({e.strerror or e}); expected {EXAMPLE}"
+        ) from None
+
+
+def _ray_jobs(jobs, work, workers, init, initargs, address, ordered):
+    import ray
+    from ray.exceptions import RayActorError
+
+    started = start_ray(address, workers)
+    try:
+        gpus = ray.cluster_resources().get("GPU", 0.0)
+        n = max(1, min(workers, len(jobs)))
+        options = {"num_cpus": 1, "max_restarts": 0}
+        if gpus:
+            options["num_gpus"] = min(1.0, gpus / n)
+        actor_cls = ray.remote(JobActor).options(**options)
+        cwd = os.getcwd()
+
+        def new_actor():
+            return actor_cls.remote(cwd, init, initargs)
+
+        queue = deque(enumerate(jobs))
+        attempts = [0] * len(jobs)
+        pending: dict = {}  # object ref -> (actor, index)
+        finished: dict[int, Any] = {}
+        next_out = 0
+
+        def submit(actor) -> None:
+            if queue:
+                i, job = queue.popleft()
+                pending[actor.run.remote(work, job)] = (actor, i)
+
+        for _ in range(n):
+            submit(new_actor())
+        while pending:
+            (ref,), _ = ray.wait(list(pending), num_returns=1)
+            actor, i = pending.pop(ref)
+            try:
+                result = ray.get(ref)
+            except RayActorError:
+                attempts[i] += 1
+                if attempts[i] >= MAX_ATTEMPTS:
+                    raise RuntimeError(
+                        f"job {jobs[i]!r} lost {MAX_ATTEMPTS} Ray workers in a row; stopping"
+                    ) from None
+                queue.appendleft((i, jobs[i]))
+                ray.kill(actor)
+                submit(new_actor())
+                continue
+            submit(actor)
+            if not ordered:
+                yield jobs[i], result
+                continue
+            finished[i] = result
+            while next_out in finished:
+                yield jobs[next_out], finished.pop(next_out)
+                next_out += 1
+    finally:
+        if started:
+            ray.shutdown()
