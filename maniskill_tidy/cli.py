@@ -265,6 +265,28 @@ def _export(args: argparse.Namespace) -> int:
     return 0
 
 
+def _check_render(args: argparse.Namespace) -> int:
+    from maniskill_tidy.envs.backend_check import compare_backends
+
+    if args.episodes < 1:
+        raise ValueError(f"--episodes must be at least 1, got {args.episodes}")
+    backends = tuple(b.strip() for b in args.backends.split(","))
+    r = compare_backends(backends, args.setting, args.dataset, args.split, args.episodes)
+    s = r.summary()
+    print(
+        f"{' vs '.join(backends)}, setting {args.setting}: {s['episodes']} episodes, "
+        f"{s['agent_steps']} agent-steps; visible instances (>= 20 px) differ in "
+        f"{s['visible_differs']}, action outcomes in {s['outcome_differs']}; pixels agreeing "
+        f"{s['pixel_agreement_mean']:.4f} (min {s['pixel_agreement_min']:.4f}); depth median "
+        f"|diff| at most {s['depth_median_abs_max_m'] * 1000:.2f} mm"
+    )
+    for line in s["first_divergence"]:
+        print(f"  first divergence: {line}")
+    if args.json:
+        Path(args.json).write_text(json.dumps(s, indent=1))
+    return 0
+
+
 def _validate(args: argparse.Namespace) -> int:
     from maniskill_tidy.tasks.validate import physics_problems, validate_dataset
 
@@ -585,6 +607,19 @@ def build_parser() -> argparse.ArgumentParser:
         help="with --features: the team whose labels are imitated (expert, heuristic-*)",
     )  # fmt: skip
     dm.set_defaults(func=_demos)
+
+    cr = sub.add_parser(
+        "check-render",
+        help="play the expert on two render backends (CPU lavapipe, CUDA) in lockstep and "
+        "compare what each step shows and each action's outcome",
+    )
+    cr.add_argument("--backends", default="cpu,gpu", help="two of cpu, gpu (default cpu,gpu)")
+    cr.add_argument("--setting", default="I")
+    cr.add_argument("--dataset", help="dataset directory (default: the env's shipped dataset)")
+    cr.add_argument("--split", default="test", choices=("train", "val", "test"))
+    cr.add_argument("--episodes", type=int, default=3, help="an evenly spread subset")
+    cr.add_argument("--json", help="also write the comparison here")
+    cr.set_defaults(func=_check_render)
 
     tr = sub.add_parser("train", help="train the paper's learned modules (CPU)")
     tr.add_argument(

@@ -1,0 +1,59 @@
+"""The render-backend comparison (`check-render`): what it counts, and lavapipe against itself."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from maniskill_tidy.envs.backend_check import BackendComparison, TwinObserver, compare_backends
+from maniskill_tidy.envs.hetero_tidy import default_render_backend
+from tests.test_cli_errors import cli, one_line_error
+
+
+class _FakeTwin:
+    def __init__(self, frames):
+        self.frames = iter(frames)
+
+    def call(self, what, arg):
+        return next(self.frames)
+
+
+class _Env:
+    class episode:  # noqa: N801
+        id = "house_x/task_0/start_0"
+
+
+def _obs(seg, held=0):
+    return {"agent_0": {"segmentation": seg, "depth": np.ones_like(seg, np.float32),
+                        "held": np.array(held)}}  # fmt: skip
+
+
+def test_the_comparison_counts_what_decides_outcomes():
+    seg = np.zeros((16, 16), np.int32)
+    seg[:5, :5] = 7  # 25 px: visible
+    other = seg.copy()
+    other[:5, :5] = 0  # the twin does not see instance 7
+    result = BackendComparison(("cpu", "gpu"))
+    twin = TwinObserver(_FakeTwin([(_obs(seg), {}), (_obs(other, 7), {})]), 0, 0, result)
+    twin.start(_Env(), None, None)
+    twin.observed(0, _obs(seg), {"failed": {}})  # the same frame
+    twin.decided(0, {}, {})
+    twin.observed(1, _obs(seg), {"failed": {"agent_0": "not visible"}})
+    s = result.summary()
+    assert s["agent_steps"] == 2 and s["visible_differs"] == 1 and s["outcome_differs"] == 1
+    assert s["first_divergence"] == ["house_x/task_0/start_0 step 1 agent_0: visible [7]; "
+                                     "outcome 'not visible'/0 vs ''/7"]  # fmt: skip
+    assert s["pixel_agreement_min"] == pytest.approx(1 - 25 / 256)
+
+
+def test_lavapipe_against_itself_shows_no_difference():
+    r = compare_backends(("cpu", "cpu"), episodes=1, progress=False).summary()
+    assert r["episodes"] == 1 and r["agent_steps"] > 50
+    assert r["visible_differs"] == r["outcome_differs"] == 0
+    assert r["pixel_agreement_min"] == 1.0
+
+
+@pytest.mark.skipif(default_render_backend() == "gpu", reason="this machine has a CUDA device")
+def test_check_render_without_a_gpu_says_so_in_one_line():
+    one_line_error(cli("check-render", "--episodes", "1"), "no CUDA device", "cpu,cpu")
+    one_line_error(cli("check-render", "--backends", "cpu,vulkan"), "expected two of cpu, gpu")
