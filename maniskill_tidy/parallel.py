@@ -128,7 +128,8 @@ def start_ray(address: str, workers: int) -> bool:
         # Ray starts its workers niced (15 by default): beside any other busy process on this
         # machine the actors then got an eighth of the time that pool workers get.
         os.environ.setdefault("RAY_worker_niceness", "0")
-        ray.init(num_cpus=workers, object_store_memory=200 * 2**20, **common)
+        # address="local": a new instance even where `ray start` left one to join
+        ray.init(address="local", num_cpus=workers, object_store_memory=200 * 2**20, **common)
     else:
         try:
             ray.init(address=address, **common)
