@@ -156,3 +156,5 @@ def test_ray_refuses_an_address_where_nothing_answers(tmp_path):
     p = cli("generate", "--houses", "2", "--ray", "no-port", "--out", str(out))
     one_line_error(p, "--ray 'no-port'", "ray start --head")
     assert not out.exists()
+    one_line_error(cli("demos", "--ray", "--out", str(out)), "--ray", "--features")
+    assert not out.exists()
