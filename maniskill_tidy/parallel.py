@@ -91,13 +91,11 @@ class JobActor:
     def __init__(self, cwd: str, init: Callable | None, initargs: tuple) -> None:
         if os.path.isdir(cwd):  # relative paths (a dataset folder) mean what they meant there
             os.chdir(cwd)
-        self.close = init(*initargs) if init is not None else None
+        if init is not None:
+            init(*initargs)  # the env lives as long as the actor's process
 
     def run(self, work: Callable, job: Any) -> Any:
         return work(job)
-
-    def pid(self) -> int:
-        return os.getpid()
 
 
 def check_ray(address: str) -> None:
