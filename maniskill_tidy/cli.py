@@ -665,6 +665,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     from maniskill_tidy.houses.procthor import ProcTHORImportError
+    from maniskill_tidy.parallel import WorkerLostError
     from maniskill_tidy.tasks.dataset import DatasetError
 
     args = build_parser().parse_args(argv)
@@ -678,6 +679,9 @@ def main(argv: list[str] | None = None) -> int:
         message = err.args[0] if isinstance(err, KeyError) and err.args else err
         print(f"maniskill-tidy {args.command}: {message}", file=sys.stderr)
         return 2
+    except WorkerLostError as err:  # not bad input: what finished is kept, a rerun resumes
+        print(f"maniskill-tidy {args.command}: {err}", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":

@@ -22,6 +22,12 @@ from collections.abc import Callable, Iterable, Iterator
 from typing import Any
 
 MAX_ATTEMPTS = 3  # actors one job may lose before the run stops
+
+
+class WorkerLostError(RuntimeError):
+    """A job killed :data:`MAX_ATTEMPTS` workers: the job, not the cluster, is at fault."""
+
+
 LOCAL = "local"  # --ray without an address: start a Ray instance on this machine
 
 
@@ -201,7 +207,7 @@ def _ray_jobs(jobs, work, workers, init, initargs, address, ordered):
             except RayActorError:
                 attempts[i] += 1
                 if attempts[i] >= MAX_ATTEMPTS:
-                    raise RuntimeError(
+                    raise WorkerLostError(
                         f"job {jobs[i]!r} lost {MAX_ATTEMPTS} Ray workers in a row; stopping"
                     ) from None
                 queue.appendleft((i, jobs[i]))

@@ -134,3 +134,19 @@ def test_eval_of_an_untrained_variant_names_the_training_command_and_writes_noth
     line = one_line_error(cli("eval", "--policy", str(config), "--out", str(out)), "not found")
     assert f"maniskill-tidy train {config} --setting I" in line
     assert not out.exists()
+
+
+def test_a_job_that_kills_its_workers_ends_the_command_in_one_line_with_status_1(
+    tmp_path, monkeypatch, capsys
+):
+    from maniskill_tidy import cli as cli_module
+    from maniskill_tidy.parallel import WorkerLostError
+
+    def lose_workers(args):
+        raise WorkerLostError("job 'h007' lost 3 Ray workers in a row; stopping")
+
+    monkeypatch.setattr(cli_module, "_generate", lose_workers)
+    status = cli_module.main(["generate", "--houses", "2", "--out", str(tmp_path / "ds")])
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert status == 1
+    assert lines == ["maniskill-tidy generate: job 'h007' lost 3 Ray workers in a row; stopping"]

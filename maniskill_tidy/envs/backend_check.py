@@ -119,9 +119,10 @@ class TwinObserver:
                     float(np.median(np.abs(o["depth"][same] - mine["depth"][same])))
                 )
             what = []
-            if _visible(seg_a) != _visible(seg_b):
+            visible_a, visible_b = _visible(seg_a), _visible(seg_b)
+            if visible_a != visible_b:
                 r.visible_differs += 1
-                what.append(f"visible {sorted(_visible(seg_a) ^ _visible(seg_b))}")
+                what.append(f"visible {sorted(visible_a ^ visible_b)}")
             fail_a = info.get("failed", {}).get(name, "")
             fail_b = self.info.get("failed", {}).get(name, "")
             if fail_a != fail_b or int(o["held"]) != int(mine["held"]):
