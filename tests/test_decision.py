@@ -56,6 +56,7 @@ def test_demos_hold_every_agents_inputs_and_the_experts_labels(demos):
     k = len(load_catalog().categories)
     assert d["rgb"].shape[1:] == (64, 64, 3) and d["seen"].shape[1:] == (k,)
     assert np.unpackbits(d["crop"], axis=1).shape[1] >= 20 * 20 * (k + 2)
+    assert d["wide"].shape[1:] == (20, 20, 3) and d["wide"].dtype == np.uint8
     for agent in range(3):  # one sequence per agent: steps 0, 1, ... up to its Stop
         rows = np.flatnonzero(d["agent"] == agent)
         assert rows.tolist() == sorted(rows) and d["t"][rows].tolist() == list(range(len(rows)))
@@ -130,6 +131,9 @@ def test_features_line_up_with_the_rows(rows):
     assert layout.dtype == torch.uint8 and layout.shape[1:] == (20, 20, 3)
     explored = layout[..., 1].flatten(1).sum(1)
     assert explored[-1] > explored[0] > 0, "its map grows as it moves"
+    wide = xs[2]["wide"][present[..., 2]].float()  # the same map, coarse and whole
+    assert wide.shape[1:] == (20, 20, 3) and wide.max() <= 255
+    assert wide[-1, ..., 1].sum() > wide[0, ..., 1].sum() > 0
     assert present.shape[-1] == 3 and all(y["dx"][present[..., i]].min() >= 0
                                           for i, y in enumerate(ys))  # fmt: skip
 
@@ -246,7 +250,9 @@ def test_auc_is_the_chance_a_positive_outranks_a_negative():
     assert auc(torch.tensor([0.5, 0.2]), torch.tensor([False, False])) is None
 
 
-@pytest.mark.parametrize("variant", [{"hierarchical": False}, {"communication": "cmpr"}])
+@pytest.mark.parametrize(
+    "variant", [{"hierarchical": False}, {"communication": "cmpr"}, {"wide_layout": True}]
+)
 def test_a_variant_learns_its_own_heads_from_the_same_rows(rows, tmp_path, variant):
     """w/o HierDec. clones the teacher's low-level actions; a baseline's auxiliary loss (the
     code's reconstruction) is part of what is minimised."""

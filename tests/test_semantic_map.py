@@ -31,6 +31,7 @@ from maniskill_tidy.perception.semantic_map import (
     SemanticMap,
     box_cells,
     egocentric_crop,
+    wide_layout,
     find_frontiers,
     open_links,
     project_points,
@@ -249,6 +250,25 @@ def test_crop_turns_with_the_agent(rotation):
     assert crop.shape == (20, 20, 3)
     assert np.argwhere(crop[..., 0]).tolist() == [[5, 10]]  # row 0 is the far end ahead
     assert np.argwhere(crop[..., 1]).tolist() == [[9, 6]]  # column 0 the far left
+
+
+@pytest.mark.parametrize("rotation", [0, 90])
+def test_the_wide_layout_gives_shares_of_the_whole_map_turned_with_the_agent(rotation):
+    frame = MapFrame((0.0, 0.0), (400, 400), 0.05)  # 20 m x 20 m
+    td = np.zeros((400, 400, 3), dtype=np.uint8)  # obstacle, explored, one category
+    td[:, 200:, EXPLORED] = 1  # the eastern half (x >= 10 m) is explored
+    td[200:205, 280:285, FIRST_CHANNEL] = 1  # an object at x 14-14.25 m, y 10-10.25 m
+    wide = wide_layout(td, frame, (10.0, 10.0, rotation))
+    assert wide.shape == (20, 20, 3) and wide.dtype == np.uint8
+    explored = wide[..., EXPLORED]
+    if rotation == 0:  # facing east: the explored half is ahead (rows 0-9)
+        assert (explored[:10] == 255).all() and (explored[10:] == 0).all()
+        # 4-4.25 m ahead, 0-0.25 m to the left: one of the cell's 16 samples
+        assert np.argwhere(wide[..., 2]).tolist() == [[5, 9]] and wide[5, 9, 2] == 16
+    else:  # facing north: the explored half is to the right (columns 10-19)
+        assert (explored[:, 10:] == 255).all() and (explored[:, :10] == 0).all()
+    td[:, 200:210, EXPLORED] = 0  # a metre explored only in part: x 10.5-11 m of it
+    assert wide_layout(td, frame, (10.0, 10.0, 0))[..., EXPLORED][9, 0] == 128
 
 
 def test_crop_cells_outside_the_map_are_zero():

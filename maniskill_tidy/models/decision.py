@@ -22,7 +22,9 @@ agent's hands are empty, its receptacle-type channels weighted by the softmax ov
 holds something. This is how the sub-goal is conditioned on the sub-task here (hierarchical
 decision); it is differentiable, so F_g's loss trains F_a's heads too. It is this project's
 addition to the paper's F_g inputs (``sm`` alone did not place a target: README, "The learned
-team").
+team"). With ``wide_layout`` F_g also reads ``sw``, the same CNN's shape over the agent's whole
+map at 1 m per cell (``semantic_map.wide_layout``): the 5 m crop rarely holds the frontier the
+exploring teacher walks to.
 """
 
 from __future__ import annotations
@@ -77,6 +79,7 @@ class DecisionConfig:
     hidden: int = 128  # F_a and F_g LSTMs (the paper's 512, shrunk)
     embed: int = 256  # se and F_g's last hidden layer (Table 2)
     layout: bool = False  # F_g reads sl (the crop's geometry) too
+    wide_layout: bool = False  # F_g reads sw (the whole map's coarse layout) too
     goal_map: bool = False  # sl also reads the sub-task's target in the crop (needs layout)
     communication: str = "hangrcom"  # or a baseline of models/communication.py
     # ablations (paper Section 6.5): without the misplaced-object detector F_s gets no fd and no
@@ -126,7 +129,7 @@ def unpack_goal(packed: torch.Tensor, size: int, types: int) -> torch.Tensor:
 
 
 class LayoutEncoder(nn.Module):
-    """sl: a small CNN over the crop's geometry (20 x 20 x LAYOUT -> 64)."""
+    """sl, sw: a small CNN over a map's geometry (20 x 20 x LAYOUT -> 64)."""
 
     def __init__(self, out: int = 64, channels: int = LAYOUT) -> None:
         super().__init__()
@@ -199,7 +202,8 @@ class SubGoalPredictor(nn.Module):
         self.cfg = cfg
         channels = LAYOUT + (1 if cfg.goal_map else 0)
         self.layout = LayoutEncoder(channels=channels) if cfg.layout else None  # sl
-        width = cfg.embed + 2 * cfg.perception + 32 + (64 if cfg.layout else 0)
+        self.wide = LayoutEncoder() if cfg.wide_layout else None  # sw
+        width = cfg.embed + 2 * cfg.perception + 32 + 64 * (cfg.layout + cfg.wide_layout)
         self.lstm = nn.LSTM(width, cfg.hidden, batch_first=True)
         self.hidden = nn.Sequential(nn.Linear(cfg.hidden, cfg.embed), nn.ReLU())
         self.heads = nn.ModuleDict(
@@ -215,6 +219,8 @@ class SubGoalPredictor(nn.Module):
             if self.cfg.goal_map:
                 layout = torch.cat([layout, self.goal(x, task)[..., None]], dim=-1)
             parts.append(self.layout(layout))
+        if self.wide is not None:
+            parts.append(self.wide(x["wide"].float() / 255))
         h, state = self.lstm(torch.cat(parts, dim=-1), state)
         h = self.hidden(h)
         return {k: head(h) for k, head in self.heads.items()}, state

@@ -12,6 +12,8 @@ Per frame (:class:`FrameInputs`):
 - ``seen``: the share of the image each category covers (the room classifier's "detected
   objects"; segmentation is ground truth, standing in for Mask R-CNN);
 - ``crop``: the map's egocentric crop, G x G x (K + 2) cells of 0.25 m (the scene encoder's);
+- ``wide``: a coarse egocentric view of the same map, 20 x 20 cells of 1 m, shares of obstacle,
+  explored and any-object (``semantic_map.wide_layout``; F_g's ``sw`` with ``wide_layout``);
 - ``pose``: x, y, rotation and camera pitch; ``held``: the held object's type index or -1;
 - one detection per pickupable object in view, not held (``sl``'s inputs): type, the receptacle
   type it rests on (back-projected pixels + the floor plan's surfaces), and 7 numbers: image
@@ -41,6 +43,7 @@ class FrameInputs:
     rgb: np.ndarray  # (64, 64, 3) uint8
     seen: np.ndarray  # (K,) float32
     crop: np.ndarray  # (G, G, K + 2) bool
+    wide: np.ndarray  # (20, 20, 3) uint8 shares
     pose: np.ndarray  # (4,) float32: x, y, rotation, camera pitch (degrees)
     held: int  # type index in the catalog's categories, or -1
     det_type: np.ndarray  # (n,) category indices
@@ -110,6 +113,7 @@ class FrameReader:
             rgb=cv2.resize(rgb, (IMAGE, IMAGE), interpolation=cv2.INTER_AREA),
             seen=seen,
             crop=self.map.local_crop(pose[:3]) > 0,
+            wide=self.map.wide_layout(pose[:3]),
             pose=np.array([*pose[:3], camera_pitch(obs["extrinsics"])], dtype=np.float32),
             held=held,
             det_type=np.asarray(types, dtype=np.int64),

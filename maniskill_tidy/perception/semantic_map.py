@@ -395,6 +395,10 @@ class SemanticMap:
             cell or self.config.crop_cell,
         )
 
+    def wide_layout(self, pose) -> np.ndarray:
+        """The coarse egocentric view of the whole map; see :func:`wide_layout`."""
+        return wide_layout(self.top_down(), self.frame, pose)
+
     def frontiers(self, min_cells: int = 5) -> list[Frontier]:
         return find_frontiers(self.top_down(), self.frame, min_cells)
 
@@ -489,11 +493,45 @@ def egocentric_crop(
     of map-cell spacing), so a 5 cm object is not lost in a 25 cm crop cell. Cells outside the
     map are 0.
     """
+    sub = max(int(round(cell / frame.cell)), 1)
+    return _egocentric_samples(top_down, frame, pose, size, cell, sub).max(axis=(1, 3))
+
+
+WIDE_SIZE = 20  # cells of the wide layout
+WIDE_CELL = 1.0  # metres per wide-layout cell: 20 m across, most of a house
+WIDE_SAMPLES = 4  # samples per cell side (every 0.25 m, the planner's grid)
+
+
+def wide_layout(
+    top_down: np.ndarray,
+    frame: MapFrame,
+    pose,
+    size: int = WIDE_SIZE,
+    cell: float = WIDE_CELL,
+    samples: int = WIDE_SAMPLES,
+) -> np.ndarray:
+    """(size, size, 3) uint8: per coarse cell, the share (0-255) of obstacle, explored and
+    any-object samples, oriented as :func:`egocentric_crop`.
+
+    The 5 m crop rarely holds the frontier an exploring teacher heads for; this coarse view of
+    the agent's own map does, and shares keep a half-explored cell apart from an explored one.
+    """
+    s = _egocentric_samples(top_down, frame, pose, size, cell, samples)
+    layout = np.stack(
+        [s[..., OBSTACLE], s[..., EXPLORED], s[..., FIRST_CHANNEL:].any(-1)], axis=-1
+    ).astype(np.float32)
+    return np.round(layout.mean(axis=(1, 3)) * 255).astype(np.uint8)
+
+
+def _egocentric_samples(
+    top_down: np.ndarray, frame: MapFrame, pose, size: int, cell: float, sub: int
+) -> np.ndarray:
+    """(size, sub, size, sub, channels): the map read at ``sub`` x ``sub`` points per crop
+    cell of an egocentric grid (0 outside the map)."""
     x, y, rotation = (float(v) for v in pose)
     yaw = math.radians(rotation)
     fwd = np.array([math.cos(yaw), math.sin(yaw)])
     right = np.array([math.sin(yaw), -math.cos(yaw)])
-    sub = max(int(round(cell / frame.cell)), 1)
     offsets = (np.arange(size * sub) + 0.5) / sub - size / 2  # crop cells from the centre
     ahead = -offsets * cell  # row index grows away from "ahead"
     side = offsets * cell
@@ -503,8 +541,7 @@ def egocentric_crop(
     inside = (rows >= 0) & (rows < top_down.shape[0]) & (cols >= 0) & (cols < top_down.shape[1])
     samples = np.zeros((len(rows), top_down.shape[2]), dtype=top_down.dtype)
     samples[inside] = top_down[rows[inside], cols[inside]]
-    samples = samples.reshape(size, sub, size, sub, -1)
-    return samples.max(axis=(1, 3))
+    return samples.reshape(size, sub, size, sub, -1)
 
 
 @dataclass(frozen=True)

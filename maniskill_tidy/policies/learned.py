@@ -150,6 +150,8 @@ class LearnedAgent(PerceivingAgent):
             x["layout"] = torch.from_numpy(crop_layout(f.crop))[None, None]
         if self.decision.cfg.goal_map:
             x["goal"] = torch.from_numpy(crop_goal(f.crop))[None, None]
+        if self.decision.cfg.wide_layout:
+            x["wide"] = torch.from_numpy(f.wide)[None, None]
         self.x = x
         with torch.no_grad():
             sf, state = self.decision.state(x, self.lstm[0])

@@ -11,7 +11,8 @@ team runs at evaluation. Per agent and step (one *row*) a shard stores
 
 - the model's inputs: ``rgb`` (64 x 64), ``seen`` (image share per category), ``crop`` (the map's
   20 x 20 x (K + 2) egocentric crop, bit-packed: 6050 bytes that zlib shrinks to a few hundred,
-  smaller than a label image and lossless where a cell holds several categories), ``pose``,
+  smaller than a label image and lossless where a cell holds several categories), ``wide`` (the
+  map's coarse 20 x 20 x 3 egocentric layout, uint8 shares: ``semantic_map.wide_layout``), ``pose``,
   ``capability``, ``held`` (type or -1), ``failed`` (its own last action failed), and one
   detection per pickupable object in view (``det_row``, ``det_type``, ``det_rest``,
   ``det_numeric``: the inputs of ``sl``);
@@ -47,6 +48,7 @@ from tqdm import tqdm
 from maniskill_tidy.envs.actions import Action, Targeted
 from maniskill_tidy.knowledge import ROOM_TYPES, load_catalog
 from maniskill_tidy.perception.frame_inputs import DETECTION_NUMERIC, IMAGE, FrameReader
+from maniskill_tidy.perception.semantic_map import WIDE_SIZE
 from maniskill_tidy.policies.base import OPERATIONS, PLACE
 from maniskill_tidy.tasks.dataset import write_atomic
 from maniskill_tidy.training.house_jobs import (
@@ -57,10 +59,10 @@ from maniskill_tidy.training.house_jobs import (
     worker_env,
 )
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2  # 2: rows carry ``wide``
 ROW_KEYS = (
     "episode", "agent", "t", "capability", "pose", "held", "failed", "rgb", "seen", "crop",
-    "kind", "object", "receptacle", "room", "dx", "dy", "drot", "ope", "stop", "action",
+    "wide", "kind", "object", "receptacle", "room", "dx", "dy", "drot", "ope", "stop", "action",
 )  # fmt: skip
 DET_KEYS = ("det_row", "det_type", "det_rest", "det_numeric")
 
@@ -137,7 +139,7 @@ class DemoRecorder:
             action = action.action if isinstance(action, Targeted) else Action(int(action))
             self.episode_rows[a.name].append(
                 (e, i, t, a.capability, f.pose, f.held, failed, f.rgb, f.seen.astype(np.float16),
-                 np.packbits(f.crop.reshape(-1)), *subtask_codes(subtask),
+                 np.packbits(f.crop.reshape(-1)), f.wide, *subtask_codes(subtask),
                  *subgoal_codes(subgoal), int(action))
             )  # fmt: skip
             self.episode_dets[a.name].append(f)
@@ -163,9 +165,11 @@ class DemoRecorder:
         k = len(load_catalog().categories)
         out = {"house": np.array(house), "episodes": np.array(json.dumps(self.episodes))}
         empty = {"rgb": (0, IMAGE, IMAGE, 3), "seen": (0, k), "pose": (0, 4), "capability": (0, 3),
-                 "crop": (0, 0), "det_numeric": (0, DETECTION_NUMERIC)}  # fmt: skip
-        dtypes = {"rgb": np.uint8, "crop": np.uint8, "seen": np.float16, "pose": np.float32,
-                  "failed": bool, "stop": bool, "det_numeric": np.float32}  # fmt: skip
+                 "crop": (0, 0), "wide": (0, WIDE_SIZE, WIDE_SIZE, 3),
+                 "det_numeric": (0, DETECTION_NUMERIC)}  # fmt: skip
+        dtypes = {"rgb": np.uint8, "crop": np.uint8, "wide": np.uint8, "seen": np.float16,
+                  "pose": np.float32, "failed": bool, "stop": bool,
+                  "det_numeric": np.float32}  # fmt: skip
         for key in ROW_KEYS + DET_KEYS:
             values = self.dets[key] if key in DET_KEYS else self.rows[key]
             dtype = dtypes.get(key, np.int16)
@@ -258,7 +262,7 @@ def build_demo_features(
     by_house = select_episodes(episodes.episodes, cfg)
     probe.close()
     directory = Path(out) / f"setting_{cfg.setting}" / cfg.split
-    want = {"dataset_hash": dataset_hash, **asdict(cfg)}
+    want = {"format_version": FORMAT_VERSION, "dataset_hash": dataset_hash, **asdict(cfg)}
     check_same_config(directory / "manifest.json", want)
     directory.mkdir(parents=True, exist_ok=True)
     jobs = [
@@ -284,7 +288,6 @@ def build_demo_features(
             counts["detections"] += len(z["det_row"])
         counts["bytes"] += shard.stat().st_size
     manifest = {
-        "format_version": FORMAT_VERSION,
         **want,
         "houses_done": len(list(directory.glob("house_*.npz"))),
         **counts,

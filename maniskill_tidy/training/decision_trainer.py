@@ -219,7 +219,7 @@ class Rows:
         return xs, present, ys
 
 
-FEATURES_VERSION = 3  # 2: the crop's layout (crop_layout); 3: its goal channels (crop_goal)
+FEATURES_VERSION = 4  # 2: the crop's layout; 3: its goal channels (crop_goal); 4: the wide layout
 
 
 def _feature_hash(demos_hash: str, perception: Path) -> str:
@@ -274,6 +274,7 @@ def embed_split(directory: Path, perception_dir: Path, cache: Path, progress: bo
             parts.setdefault("layout", []).append(torch.from_numpy(layout))
             goal = crop_goal(crop.reshape(-1, g, g, k + 2))
             parts.setdefault("goal", []).append(torch.from_numpy(goal))
+            parts.setdefault("wide", []).append(torch.from_numpy(d["wide"][sl]))
         parts.setdefault("pose", []).append(torch.from_numpy(d["pose"]))
         for name in ("failed", "capability", "held", *LABELS):
             parts.setdefault(name, []).append(torch.from_numpy(d[name].astype(np.int64)))
@@ -281,7 +282,7 @@ def embed_split(directory: Path, perception_dir: Path, cache: Path, progress: bo
             keys.append((episodes + int(e), int(t), int(a)))
         episodes += len(json.loads(str(d["episodes"])))
     cat = {name: torch.cat(v) for name, v in parts.items()}
-    x = {name: cat[name] for name in (*FEATURES, "mis", "det", "layout", "goal")}
+    x = {name: cat[name] for name in (*FEATURES, "mis", "det", "layout", "goal", "wide")}
     x["failed"] = cat["failed"].float()
     x["pose"] = cat["pose"].float()
     x["va"] = cat["capability"].float()
@@ -303,7 +304,7 @@ def embed_split(directory: Path, perception_dir: Path, cache: Path, progress: bo
 def used_input(name: str, cfg: DecisionConfig) -> bool:
     """Whether a model with ``cfg`` reads the cached input ``name`` (the goal channels are
     340 MB per 63k rows)."""
-    return {"layout": cfg.layout, "goal": cfg.goal_map}.get(name, True)
+    return {"layout": cfg.layout, "goal": cfg.goal_map, "wide": cfg.wide_layout}.get(name, True)
 
 
 # ------------------------------------------------------------------- loss and metrics
