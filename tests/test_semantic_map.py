@@ -31,11 +31,11 @@ from maniskill_tidy.perception.semantic_map import (
     SemanticMap,
     box_cells,
     egocentric_crop,
-    wide_layout,
     find_frontiers,
     open_links,
     project_points,
     share_maps,
+    wide_layout,
 )
 from maniskill_tidy.policies.channel import Channel
 
