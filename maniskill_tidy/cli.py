@@ -186,9 +186,24 @@ def _demos(args: argparse.Namespace) -> int:
     return 0
 
 
+TRAIN_DEFAULTS = {"dataset": "data/tidy120", "out": "agents/perception",
+                  "work": "data/perception", "seed": 0, "workers": 2}  # fmt: skip
+
+
 def _train(args: argparse.Namespace) -> int:
     from maniskill_tidy.training.qmix_trainer import is_qmix_config, train_qmix
 
+    if args.what != "perception":  # an agent config says where its model goes: eval reads it
+        given = [f"--{k}" for k in TRAIN_DEFAULTS if getattr(args, k) is not None]
+        if given:
+            raise ValueError(
+                f"{' '.join(given)} apply to `train perception`; an agent config sets them "
+                f"itself (out, dataset, work, workers, train.seed): write a config with "
+                f"`base: {args.what}` and the values to change"
+            )
+    for key, default in TRAIN_DEFAULTS.items():
+        if getattr(args, key) is None:
+            setattr(args, key, default)
     if is_qmix_config(Path(args.what)):
         card = train_qmix(Path(args.what), args.setting)
         print(
@@ -626,13 +641,13 @@ def build_parser() -> argparse.ArgumentParser:
         "what", help="`perception`, or an agent config (agents/hangrcom.yaml) to train by BC"
     )
     tr.add_argument("--setting", default="I", help="with an agent config: I or II")
-    tr.add_argument("--dataset", default="data/tidy120", help="dataset directory")
-    tr.add_argument("--out", default="agents/perception", help="agent folder to write")
+    tr.add_argument("--dataset", help="perception: dataset directory (data/tidy120)")
+    tr.add_argument("--out", help="perception: agent folder to write (agents/perception)")
     tr.add_argument(
-        "--work", default="data/perception", help="views and resumable checkpoints (not shipped)"
+        "--work", help="perception: views and resumable checkpoints, not shipped (data/perception)"
     )
-    tr.add_argument("--seed", type=int, default=0)
-    tr.add_argument("--workers", type=int, default=2, help="processes rendering the views")
+    tr.add_argument("--seed", type=int, help="perception: seed (0)")
+    tr.add_argument("--workers", type=int, help="perception: processes rendering the views (2)")
     tr.set_defaults(func=_train)
 
     pr = sub.add_parser(

@@ -150,3 +150,16 @@ def test_a_job_that_kills_its_workers_ends_the_command_in_one_line_with_status_1
     lines = capsys.readouterr().err.strip().splitlines()
     assert status == 1
     assert lines == ["maniskill-tidy generate: job 'h007' lost 3 Ray workers in a row; stopping"]
+
+
+def test_training_an_agent_config_refuses_the_perception_options_instead_of_ignoring_them(
+    tmp_path,
+):
+    """`train CONFIG --out X` once wrote the shipped model over, since only the config says
+    where a model goes (and eval reads it there)."""
+    config = tmp_path / "variant.yaml"
+    config.write_text(f"base: {Path('agents/hangrcom.yaml').resolve()}\nname: v\nout: {tmp_path}\n")
+    out = tmp_path / "elsewhere"
+    line = one_line_error(cli("train", str(config), "--out", str(out)), "--out", "base:")
+    assert str(config) in line
+    assert not out.exists() and not (tmp_path / "setting_I").exists()
