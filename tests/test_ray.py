@@ -121,6 +121,17 @@ def test_a_killed_actor_is_replaced_and_no_episode_is_lost_or_counted_twice(
     assert _records(jsonl) == reference
 
 
+def test_a_dataset_generated_on_ray_actors_is_the_one_local_processes_make(tmp_path, local_ray):
+    from maniskill_tidy.tasks.dataset import generate_dataset
+
+    pool = generate_dataset(tmp_path / "pool", 6, seed=9, progress=False, workers=2)
+    on_ray = generate_dataset(tmp_path / "ray", 6, seed=9, progress=False, workers=2, ray=local_ray)
+    assert on_ray["dataset_hash"] == pool["dataset_hash"]
+    assert (tmp_path / "ray/manifest.json").read_bytes() == (
+        tmp_path / "pool/manifest.json"
+    ).read_bytes()
+
+
 def test_a_job_whose_worker_dies_runs_again_on_a_new_one(tmp_path, local_ray):
     marker = tmp_path / "died"
 
