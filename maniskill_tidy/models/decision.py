@@ -22,9 +22,9 @@ agent's hands are empty, its receptacle-type channels weighted by the softmax ov
 holds something. This is how the sub-goal is conditioned on the sub-task here (hierarchical
 decision); it is differentiable, so F_g's loss trains F_a's heads too. It is this project's
 addition to the paper's F_g inputs (``sm`` alone did not place a target: README, "The learned
-team"). With ``wide_layout`` F_g also reads ``sw``, the same CNN's shape over the agent's whole
-map at 1 m per cell (``semantic_map.wide_layout``): the 5 m crop rarely holds the frontier the
-exploring teacher walks to.
+team"). With ``wide_layout`` F_g also reads ``sw``, a second CNN of the same shape over the
+agent's whole map at 1 m per cell (``semantic_map.wide_layout``): the 5 m crop rarely holds the
+frontier the exploring teacher walks to (on val it did not help: README, "The learned team").
 """
 
 from __future__ import annotations
