@@ -180,6 +180,19 @@ def test_agents_of_a_team_share_code_and_public_data_not_state(
             assert not common, f"{policy}: agents share {[type(reach[i][k]) for k in common]}"
 
 
+def test_a_learned_agent_maps_the_wide_layout_only_when_its_model_reads_it(
+    small_house_public, learned_config, seeded_config, tmp_path
+):
+    """The wide layout costs a few ms per agent-step; models without ``sw`` skip it."""
+    public = small_house_public
+    wide = seeded_config(tmp_path, "wide", "{wide_layout: true}", settings=(("I", 3),))
+    for config, expect in ((learned_config, False), (wide, True)):
+        team = make_team(str(config))
+        channel = Channel(public.agents)
+        agent = team.make_agent(public.agents[0], public, Outbox(channel, public.agents[0]))
+        assert agent.reader.wide is expect, config
+
+
 @pytest.fixture(scope="module")
 def small_house_public():
     from maniskill_tidy.envs.episodes import default_dataset

@@ -13,7 +13,8 @@ Per frame (:class:`FrameInputs`):
   objects"; segmentation is ground truth, standing in for Mask R-CNN);
 - ``crop``: the map's egocentric crop, G x G x (K + 2) cells of 0.25 m (the scene encoder's);
 - ``wide``: a coarse egocentric view of the same map, 20 x 20 cells of 1 m, shares of obstacle,
-  explored and any-object (``semantic_map.wide_layout``; F_g's ``sw`` with ``wide_layout``);
+  explored and any-object (``semantic_map.wide_layout``; F_g's ``sw`` with ``wide_layout``), or
+  None when the reader was made with ``wide=False`` (it costs a few ms per frame);
 - ``pose``: x, y, rotation and camera pitch; ``held``: the held object's type index or -1;
 - one detection per pickupable object in view, not held (``sl``'s inputs): type, the receptacle
   type it rests on (back-projected pixels + the floor plan's surfaces), and 7 numbers: image
@@ -43,7 +44,7 @@ class FrameInputs:
     rgb: np.ndarray  # (64, 64, 3) uint8
     seen: np.ndarray  # (K,) float32
     crop: np.ndarray  # (G, G, K + 2) bool
-    wide: np.ndarray  # (20, 20, 3) uint8 shares
+    wide: np.ndarray | None  # (20, 20, 3) uint8 shares, None unless the reader computes it
     pose: np.ndarray  # (4,) float32: x, y, rotation, camera pitch (degrees)
     held: int  # type index in the catalog's categories, or -1
     det_type: np.ndarray  # (n,) category indices
@@ -62,8 +63,11 @@ def camera_pitch(extrinsics: np.ndarray) -> int:
 class FrameReader:
     """One agent's map and the per-frame inputs of the learned modules (create one per episode)."""
 
-    def __init__(self, house: House, instances: dict, stride: int = MAP_STRIDE) -> None:
+    def __init__(
+        self, house: House, instances: dict, stride: int = MAP_STRIDE, wide: bool = False
+    ) -> None:
         self.house, self.instances = house, instances
+        self.wide = wide
         self.catalog = load_catalog()
         self.map = SemanticMap(house, instances, MapConfig(stride=stride))
         self.surfaces = surface_table(house)
@@ -113,7 +117,7 @@ class FrameReader:
             rgb=cv2.resize(rgb, (IMAGE, IMAGE), interpolation=cv2.INTER_AREA),
             seen=seen,
             crop=self.map.local_crop(pose[:3]) > 0,
-            wide=self.map.wide_layout(pose[:3]),
+            wide=self.map.wide_layout(pose[:3]) if self.wide else None,
             pose=np.array([*pose[:3], camera_pitch(obs["extrinsics"])], dtype=np.float32),
             held=held,
             det_type=np.asarray(types, dtype=np.int64),

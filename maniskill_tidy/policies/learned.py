@@ -110,7 +110,10 @@ class LearnedAgent(PerceivingAgent):
         model, perception = team.models(public.capabilities)
         i = public.agents.index(name)
         self.decision = model.agents[i]
-        super().__init__(name, public, outbox, perception, model.cfg.misplaced_detector)
+        super().__init__(
+            name, public, outbox, perception, model.cfg.misplaced_detector,
+            wide=model.cfg.wide_layout,
+        )  # fmt: skip
         self.scheme = model.cfg.communication
         self.exchange: HandshakeExchange | MessageExchange | None = None
         if self.scheme == "hangrcom":

@@ -28,13 +28,13 @@ TOP_PUT = 3  # receptacle types (the likeliest) an object may be put down on
 class PerceivingAgent(Agent):
     def __init__(
         self, name: str, public: PublicInfo, outbox: Outbox, perception,
-        misplaced_detector: bool = True,
+        misplaced_detector: bool = True, wide: bool = False,
     ) -> None:  # fmt: skip
         super().__init__(name, public, outbox)
         self.perception = perception
         self.misplaced_detector = misplaced_detector
         self.i = public.agents.index(name)
-        self.reader = FrameReader(public.house, public.instances)
+        self.reader = FrameReader(public.house, public.instances, wide=wide)
         self.planner = GridPlanner(public.house)
         rng = np.random.default_rng([public.seed, self.i, 11])
         self.executor = SubGoalExecutor(self.planner, rng)

@@ -115,7 +115,7 @@ class DemoRecorder:
     def start(self, env, team, channel) -> None:
         self.env = env
         public = dataclasses.replace(env.house, objects=[])  # what an agent knows (PublicInfo)
-        self.readers = {a: FrameReader(public, env.instances) for a in env.agent_names}
+        self.readers = {a: FrameReader(public, env.instances, wide=True) for a in env.agent_names}
         self.pending: dict[str, tuple] = {}
         self.episode_rows: dict[str, list] = defaultdict(list)
         self.episode_dets: dict[str, list] = defaultdict(list)
