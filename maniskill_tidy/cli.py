@@ -162,12 +162,13 @@ def _demos(args: argparse.Namespace) -> int:
 
         out = Path(args.out or "data/demos")
         cfg = DemoConfig(args.setting, args.split, args.starts, args.tasks_per_house,
-                         args.houses, args.seed, args.teacher)  # fmt: skip
+                         args.houses, args.seed, args.teacher, args.student)  # fmt: skip
         m = build_demo_features(out, args.dataset, cfg, workers=args.workers, ray=args.ray)
         folder = out / f"setting_{args.setting}" / args.split
         print(
             f"{m['trajectories']} trajectories ({m['rows']} agent-steps, "
-            f"{m['bytes'] / 1e6:.0f} MB, {cfg.teacher} success {m['teacher_success']:.3f}) "
+            f"{m['bytes'] / 1e6:.0f} MB, {cfg.student or cfg.teacher} success "
+            f"{m['teacher_success']:.3f}) "
             f"in {folder}"
         )
         return 0
@@ -621,6 +622,11 @@ def build_parser() -> argparse.ArgumentParser:
         "--teacher", default="expert",
         help="with --features: the team whose labels are imitated (expert, heuristic-*)",
     )  # fmt: skip
+    dm.add_argument(
+        "--student",
+        help="with --features: DAgger; this team (a policy or agent config) plays and the "
+        "teacher labels the states it reaches",
+    )
     dm.set_defaults(func=_demos)
 
     cr = sub.add_parser(

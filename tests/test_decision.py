@@ -375,3 +375,65 @@ def test_the_oracle_variant_alone_is_given_the_misplaced_objects_and_fetches_one
     finally:
         env.close()
     assert record.found >= 1
+
+
+# ---------------------------------------------------------------------------------- DAgger
+class Played:
+    """What the playing team sent to the env, step by step."""
+
+    def decided(self, t, actions, labels) -> None:
+        self.steps = getattr(self, "steps", []) + [dict(actions)]
+
+
+def test_a_shadow_teacher_labels_the_states_the_student_reaches(small_dataset):
+    """DAgger's rows: the student's moves reach the env, the watching teacher's labels and
+    actions are stored, and the teacher's messages are not counted as the student's."""
+    from maniskill_tidy.eval.episode import play_episode
+    from maniskill_tidy.eval.runner import RunConfig, make_env
+    from maniskill_tidy.policies import make_team
+    from maniskill_tidy.training.decision_data import DemoRecorder, ShadowTeacher
+
+    env = make_env(RunConfig("random", "I", "train", str(small_dataset), "standard"), images=True)
+    env.unwrapped.max_steps = 25
+    recorder, played = DemoRecorder(), Played()
+    recorder.shadow = ShadowTeacher("heuristic-detection", 0)
+    record = play_episode(env, make_team("random"), 0, 0, [played, recorder])
+    env.close()
+    d = recorder.arrays("h")
+    assert record.comm == 0, "the random student sends nothing; the teacher's channel is its own"
+    assert len(d["t"]) > 0 and (d["dx"] != 0).any()  # the teacher's sub-goals, not empty rows
+    pairs = zip(d["t"], d["agent"], strict=True)
+    student = [played.steps[int(t)][f"agent_{int(a)}"] for t, a in pairs]
+    student = [int(getattr(s, "action", s)) for s in student]
+    assert (d["action"] != np.asarray(student)).any(), "stored actions are the teacher's"
+
+
+def test_rows_of_two_folders_add_up_episode_by_episode(rows):
+    train, val = rows
+    both = train + val
+    n = len(train.y["dx"])
+    assert both.episodes == train.episodes + val.episodes
+    assert len(both.y["dx"]) == n + len(val.y["dx"])
+    second = both.index[train.episodes :, : val.index.shape[1]]
+    assert torch.equal(second, torch.where(val.index >= 0, val.index + n, -1))
+    assert (both.index[train.episodes :, val.index.shape[1] :] == -1).all()
+    for e in range(both.episodes):  # every row of a batch is the one it was in its own folder
+        xs, present, ys = both.batch(np.array([e]))
+        src, i = (train, e) if e < train.episodes else (val, e - train.episodes)
+        xs2, present2, ys2 = src.batch(np.array([i]))
+        assert torch.equal(present, present2)
+        assert all(torch.equal(a["dx"], b["dx"]) for a, b in zip(ys, ys2, strict=True))
+
+
+def test_a_config_refuses_also_train_folders_that_do_not_exist(tmp_path):
+    from maniskill_tidy.training.decision_trainer import train_decision
+
+    config = tmp_path / "c.yaml"
+    config.write_text(
+        f"name: c\nout: {tmp_path / 'out'}\nalso_train: [{tmp_path / 'nowhere'}]\n"
+        f"demos: {tmp_path / 'demos'}\n"
+        "train_demos: {starts: 1, tasks: 1, houses: 1}\n"
+        "val_demos: {starts: 1, tasks: 1, houses: 1}\n"
+    )
+    with pytest.raises(FileNotFoundError, match="also_train .*nowhere.* has no demonstrations"):
+        train_decision(config, "I", progress=False)

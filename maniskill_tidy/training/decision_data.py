@@ -24,6 +24,12 @@ team runs at evaluation. Per agent and step (one *row*) a shard stores
   which a heuristic agent acts before it has ever labelled one (a side-step at the very start)
   has no row.
 
+With a ``student`` (DAgger, Ross et al. 2011) the student team plays and the teacher only
+watches: a :class:`ShadowTeacher` runs the teacher's agents on the same views, on their own
+channel, and their labels (and the action each would have taken) are stored for the states the
+*student* reaches, the ones behaviour cloning on the teacher's own trajectories never shows it.
+``success`` is then the student's.
+
 Rows are ordered by episode, agent, step; ``episode`` indexes the shard's ``episodes`` (JSON:
 id, seed, success, length, team). A stopped agent has no rows after its Stop. One ``.npz`` per
 house, written atomically; a rerun skips finished houses. ``manifest.json`` holds the dataset
@@ -51,6 +57,7 @@ from maniskill_tidy.perception.frame_inputs import DETECTION_NUMERIC, IMAGE, Fra
 from maniskill_tidy.perception.semantic_map import WIDE_SIZE
 from maniskill_tidy.policies.base import OPERATIONS, PLACE
 from maniskill_tidy.tasks.dataset import write_atomic
+from maniskill_tidy.tasks.teams import SETTINGS
 from maniskill_tidy.training.house_jobs import (
     check_same_config,
     run_house_jobs,
@@ -76,6 +83,7 @@ class DemoConfig:
     houses: int | None = None  # only the split's first N houses (tests, quick looks)
     seed: int = 0
     teacher: str = "expert"  # the team whose labels are imitated (a registered policy name)
+    student: str | None = None  # DAgger: this team plays, the teacher labels (a policy or config)
 
 
 def subtask_codes(subtask) -> tuple[int, int, int, int]:
@@ -104,16 +112,47 @@ def subgoal_codes(subgoal) -> tuple[int, int, int, int, int]:
     )
 
 
+class ShadowTeacher:
+    """The teacher's agents watching another team's episode: each step they observe the same
+    views and talk on their own channel; what they would do and their labels are kept, their
+    actions are never sent to the env. A heuristic agent reads its cell, heading and held
+    object off its observation every step, so it labels states it did not steer into."""
+
+    def __init__(self, teacher: str, seed: int) -> None:
+        from maniskill_tidy.policies import make_team
+
+        self.team, self.seed = make_team(teacher), seed
+
+    def start(self, env) -> None:
+        from maniskill_tidy.eval.episode import Execution
+
+        self.execution = Execution(self.team, env, self.seed)
+
+    def observed(self, obs: dict, info: dict) -> None:
+        self.actions = self.execution.step(obs, info)
+        self.labels = self.execution.labels()
+
+    def decided(self, acting: dict) -> tuple[dict, dict]:
+        """The teacher's actions and labels for the agents that act this step."""
+        keep = [n for n in acting if n in self.actions]
+        return {n: self.actions[n] for n in keep}, {n: self.labels[n] for n in keep
+                                                   if n in self.labels}  # fmt: skip
+
+
 class DemoRecorder:
-    """An episode observer (``eval/episode.py``): each agent's inputs and the teacher's labels."""
+    """An episode observer (``eval/episode.py``): each agent's inputs and the teacher's labels
+    (the playing team's own, or a :class:`ShadowTeacher`'s when one is set for the episode)."""
 
     def __init__(self) -> None:
         self.rows: dict[str, list] = defaultdict(list)
         self.dets: dict[str, list] = defaultdict(list)
         self.episodes: list[dict] = []
+        self.shadow: ShadowTeacher | None = None
 
     def start(self, env, team, channel) -> None:
         self.env = env
+        if self.shadow is not None:
+            self.shadow.start(env)
         public = dataclasses.replace(env.house, objects=[])  # what an agent knows (PublicInfo)
         self.readers = {a: FrameReader(public, env.instances, wide=True) for a in env.agent_names}
         self.pending: dict[str, tuple] = {}
@@ -127,8 +166,12 @@ class DemoRecorder:
             for a in self.env.agents
             if not a.stopped
         }
+        if self.shadow is not None:
+            self.shadow.observed(obs, info)
 
     def decided(self, t: int, actions: dict, labels: dict) -> None:
+        if self.shadow is not None:
+            actions, labels = self.shadow.decided(actions)
         e = len(self.episodes)
         for i, a in enumerate(self.env.agents):
             if a.name not in actions or a.name not in labels:
@@ -208,7 +251,10 @@ def _house_demos(job: tuple[str, list[int], str]) -> tuple[str, bytes]:
     recorder = DemoRecorder()
     started = time.perf_counter()
     for i in indices:
-        play_episode(env, make_team(cfg.teacher), i, cfg.seed + i, [recorder])
+        if cfg.student is not None:
+            recorder.shadow = ShadowTeacher(cfg.teacher, cfg.seed + i)
+        player = make_team(cfg.student or cfg.teacher)
+        play_episode(env, player, i, cfg.seed + i, [recorder])
     buf = io.BytesIO()
     seconds = np.array(time.perf_counter() - started)  # this house, one process
     np.savez_compressed(buf, **recorder.arrays(house), seconds=seconds)
@@ -253,6 +299,15 @@ def build_demo_features(
     teachers = sorted(set(POLICIES) - {"hangrcom", "random"})
     if cfg.teacher not in teachers:
         raise ValueError(f"unknown teacher {cfg.teacher!r}; expected one of {teachers}")
+    if cfg.student is not None:
+        from maniskill_tidy.policies import team_class
+
+        student = team_class(cfg.student)  # an unknown name or config fails here, in one line
+        team = env_setting(cfg)
+        team = SETTINGS[team] if isinstance(team, str) else team
+        why = getattr(student, "missing_model", lambda team: None)(tuple(map(tuple, team)))
+        if why:
+            raise ValueError(f"student {cfg.student!r}: {why}")
     probe = gym.make(
         "HeteroTidy-v1", setting=env_setting(cfg), dataset=dataset, split=cfg.split,
         obs_mode="none",
@@ -263,6 +318,8 @@ def build_demo_features(
     probe.close()
     directory = Path(out) / f"setting_{cfg.setting}" / cfg.split
     want = {"format_version": FORMAT_VERSION, "dataset_hash": dataset_hash, **asdict(cfg)}
+    if cfg.student is None:  # folders made before DAgger existed stay valid
+        del want["student"]
     check_same_config(directory / "manifest.json", want)
     directory.mkdir(parents=True, exist_ok=True)
     jobs = [

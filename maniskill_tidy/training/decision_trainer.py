@@ -111,6 +111,9 @@ class AgentConfig:
     # a team of its own, played in every setting (SA: [[1, 1, 1]], one manipulator); its
     # teacher must play with the same team, and it is trained with --setting I
     team: list | None = None
+    # demos roots whose train rows (same setting) join this config's own: DAgger aggregates the
+    # student's labelled rollouts with the teacher's trajectories; made by the config that owns them
+    also_train: list = field(default_factory=list)
 
     @classmethod
     def load(cls, path: Path) -> AgentConfig:
@@ -140,7 +143,8 @@ class AgentConfig:
         if cfg.model.get("goal_map") and not cfg.model.get("layout"):
             raise ValueError(f"{path}: model goal_map needs layout: true (the goal is its channel)")
         for section in ("train_demos", "val_demos"):
-            bad = sorted(set(getattr(cfg, section)) - {"starts", "tasks", "houses", "teacher"})
+            keys = {"starts", "tasks", "houses", "teacher", "student"}
+            bad = sorted(set(getattr(cfg, section)) - keys)
             if bad:
                 raise ValueError(f"{path}: unknown {section} keys {bad}")
         return cfg
@@ -199,6 +203,26 @@ class Rows:
     @property
     def episodes(self) -> int:
         return self.index.shape[0]
+
+    def __add__(self, other: Rows) -> Rows:
+        """Both splits' rows as one (episodes of ``other`` after ours; same team size)."""
+        if self.index.shape[-1] != other.index.shape[-1]:
+            raise ValueError(f"rows of {self.index.shape[-1]} and {other.index.shape[-1]} agents")
+        steps = max(self.index.shape[1], other.index.shape[1])
+        n = len(next(iter(self.y.values())))
+
+        def padded(index: torch.Tensor, offset: int) -> torch.Tensor:
+            out = torch.full((index.shape[0], steps, index.shape[2]), -1, dtype=torch.long)
+            out[:, : index.shape[1]] = torch.where(index >= 0, index + offset, -1)
+            return out
+
+        common = set(self.x) & set(other.x)
+        return Rows(
+            {k: torch.cat([self.x[k], other.x[k]]) for k in self.x if k in common},
+            {k: torch.cat([self.y[k], other.y[k]]) for k in self.y},
+            torch.cat([padded(self.index, 0), padded(other.index, n)]),
+            f"{self.hash}+{other.hash}",
+        )
 
     def batch(self, episodes: np.ndarray) -> tuple[list[dict], torch.Tensor, list[dict]]:
         """Agent-wise inputs and labels (B, T, ·) of some episodes, and ``present`` (B, T, N)."""
@@ -514,6 +538,11 @@ def train_decision(config: Path, setting: str, progress: bool = True) -> dict:
                 raise ValueError(f"{config}: teacher {teacher!r} does not play with the team "
                                  f"{cfg.team}; expected a teacher with that team")  # fmt: skip
     settings = cfg.settings()
+    also = [Path(root) / f"setting_{setting}" / "train" for root in cfg.also_train]
+    for folder in also:
+        if not (folder / "manifest.json").is_file():
+            raise FileNotFoundError(f"{config}: also_train {folder} has no demonstrations; make "
+                                    "them with the config that owns them first")  # fmt: skip
     manifests = {}
     for split, demo in (("train", cfg.train_demos), ("val", cfg.val_demos)):
         manifests[split] = build_demo_features(
@@ -522,11 +551,17 @@ def train_decision(config: Path, setting: str, progress: bool = True) -> dict:
         )  # fmt: skip
     work = Path(cfg.work) / f"setting_{setting}"
     perception = Path(cfg.perception)
-    train = embed_split(demos_folder(cfg, setting, "train"), perception, work, progress)
-    val = embed_split(demos_folder(cfg, setting, "val"), perception, work, progress)
     decision = cfg.decision()
-    for rows in (train, val):  # the cache holds every model's inputs; keep what this one reads
+
+    def used(rows: Rows) -> Rows:  # the cache holds every model's inputs; keep what this reads
         rows.x = {k: v for k, v in rows.x.items() if used_input(k, decision)}
+        return rows
+
+    train = used(embed_split(demos_folder(cfg, setting, "train"), perception, work, progress))
+    for root, folder in zip(cfg.also_train, also, strict=True):
+        manifests[f"train, also {root}"] = json.loads((folder / "manifest.json").read_text())
+        train = train + used(embed_split(folder, perception, work, progress))
+    val = used(embed_split(demos_folder(cfg, setting, "val"), perception, work, progress))
     _seeded(settings.seed)
     model = TeamDecision(decision, train.index.shape[-1])
     state = fit(model, train, val, settings, work / f"{cfg.name}.ckpt", progress)
@@ -551,7 +586,9 @@ def train_decision(config: Path, setting: str, progress: bool = True) -> dict:
                     "seconds",
                     "starts",
                     "tasks",
+                    "student",
                 )
+                if k in m
             }
             for split, m in manifests.items()
         },  # fmt: skip
@@ -602,9 +639,14 @@ def model_card(card: dict) -> str:
     for split, m in card["demos"].items():
         lines.append(
             f"- {split} demonstrations: {m['trajectories']} trajectories ({m['tasks']} meta-tasks"
-            f" per house x {m['starts']} start), {m['rows']} agent-steps, teacher "
-            f"{m['teacher']} (success {m['teacher_success']:.3f}), hash "
-            f"`{m['demos_hash'][:12]}`"
+            f" per house x {m['starts']} start), {m['rows']} agent-steps, "
+            + (
+                f"played by {m['student']} and labelled by {m['teacher']} (DAgger; the "
+                f"student's success {m['teacher_success']:.3f})"
+                if m.get("student")
+                else f"teacher {m['teacher']} (success {m['teacher_success']:.3f})"
+            )
+            + f", hash `{m['demos_hash'][:12]}`"
         )
     train = card["demos"]["train"]
     each = train.get("render_seconds_per_trajectory")
