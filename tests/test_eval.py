@@ -265,6 +265,24 @@ def test_leaderboard_assembles_ces_intervals_and_notes(tmp_path):
     table_end = next(i for i in range(ours, len(lines)) if not lines[i].startswith("|"))
     assert not any("Ours *(paper)*" in line for line in lines[ours + 2 : table_end])
     assert (tmp_path / "leaderboard.png").read_bytes()[:4] == b"\x89PNG"
+    assert "full protocol (every start" not in md  # no run of it yet
+
+
+def test_a_full_protocol_run_gets_its_own_table_beside_the_standard_row(tmp_path):
+    standard = _summary("hangrcom", [True, False] * 10, 240, communication="hangrcom")
+    full = {**_summary("hangrcom", [True] + [False] * 49, 240, communication="hangrcom"),
+            "protocol": "all"}  # fmt: skip
+    for root, s in ((tmp_path, standard), (tmp_path / "all" / "eval", full)):
+        path = root / "results" / "setting_I" / "hangrcom" / "summary.json"
+        path.parent.mkdir(parents=True)
+        path.write_text(json.dumps(s))
+    md = write_leaderboard(tmp_path).read_text()
+    before, after = md.split("The paper's full protocol (every start")
+    success = [line.split("|")[4].strip() for line in md.splitlines()
+               if line.startswith("| **hangrcom**")]  # fmt: skip
+    assert success[0].startswith("0.500") and success[1].startswith("0.020")
+    assert "| **hangrcom** |" in before and "| **hangrcom** |" in after.split("##")[0]
+    assert "| hangrcom | " in after and "| all | 50 |" in after  # its details: protocol, episodes
 
 
 def test_ablations_get_their_own_table_and_learned_rows_their_own_sa(tmp_path):

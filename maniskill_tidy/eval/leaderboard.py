@@ -8,7 +8,9 @@ CES needs the single-agent baseline's success in the same setting and split: our
 (``sa-learned``) for our learned rows, our heuristic ``sa`` for the heuristic rows, the paper's
 SA row for the paper's. A plot puts Success against ACm, with the Pareto front of our rows.
 Our Success cells carry their 95 % bootstrap interval; a run whose episodes were played by more
-than one code version is flagged.
+than one code version is flagged. Runs of the paper's full protocol (``eval ... --episodes all
+--out eval/all``: every start, 1000 episodes) get a table of their own under each setting, so a
+method can have both its standard row and its full one.
 """
 
 from __future__ import annotations
@@ -331,11 +333,15 @@ def plot(runs_by_setting: dict[str, dict[str, dict]], reference: dict, out: Path
     return save_figure(fig, out)
 
 
+FULL_PROTOCOL = Path("all") / "eval"  # under the leaderboard's root: eval --out eval/all
+
+
 def write_leaderboard(root: Path = Path("eval")) -> Path:
     from maniskill_tidy.tasks.dataset import write_atomic
 
     root = Path(root)
     runs = collect(root)
+    full = collect(root / FULL_PROTOCOL)
     reference = paper_reference()
     parts = [
         "# Leaderboard",
@@ -360,6 +366,11 @@ def write_leaderboard(root: Path = Path("eval")) -> Path:
         parts += [f"## Setting {setting}", "",
                   f"Methods (the paper's Table {methods}):", "",
                   table(setting, ours, reference, "rows"), ""]  # fmt: skip
+        if full.get(setting):
+            parts += ["The paper's full protocol (every start of every meta-task of the test "
+                      "split, `eval --policy NAME --episodes all --out eval/all`; the paper's "
+                      "rows are above):", "", table(setting, full[setting], {}, "rows"),
+                      "", details(full[setting]), ""]  # fmt: skip
         if any(p in ABLATIONS for p in ours) or reference.get("ablations", {}).get(setting):
             parts += [f"Ablations (the paper's Table {ablations}):", "",
                       table(setting, ours, reference, "ablations"), ""]  # fmt: skip
