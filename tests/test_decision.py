@@ -423,6 +423,9 @@ def test_rows_of_two_folders_add_up_episode_by_episode(rows):
         xs2, present2, ys2 = src.batch(np.array([i]))
         assert torch.equal(present, present2)
         assert all(torch.equal(a["dx"], b["dx"]) for a, b in zip(ys, ys2, strict=True))
+    fewer = replace(val, x={k: v for k, v in val.x.items() if k != next(iter(val.x))})
+    with pytest.raises(ValueError, match="rows with inputs"):
+        train + fewer
 
 
 def test_a_config_refuses_also_train_folders_that_do_not_exist(tmp_path):
@@ -437,3 +440,14 @@ def test_a_config_refuses_also_train_folders_that_do_not_exist(tmp_path):
     )
     with pytest.raises(FileNotFoundError, match="also_train .*nowhere.* has no demonstrations"):
         train_decision(config, "I", progress=False)
+
+
+def test_a_student_without_a_trained_model_is_refused_before_anything_is_written(
+    tmp_path, small_dataset
+):
+    config = tmp_path / "untrained.yaml"
+    config.write_text(f"name: untrained\nout: {tmp_path / 'models'}\n")
+    cfg = replace(DEMOS, student=str(config))
+    with pytest.raises(ValueError, match="student .*model.pt not found; train it"):
+        build_demo_features(tmp_path / "demos", str(small_dataset), cfg, progress=False)
+    assert not (tmp_path / "demos").exists()

@@ -57,7 +57,7 @@ from maniskill_tidy.perception.frame_inputs import DETECTION_NUMERIC, IMAGE, Fra
 from maniskill_tidy.perception.semantic_map import WIDE_SIZE
 from maniskill_tidy.policies.base import OPERATIONS, PLACE
 from maniskill_tidy.tasks.dataset import write_atomic
-from maniskill_tidy.tasks.teams import SETTINGS
+from maniskill_tidy.tasks.teams import team as parse_team
 from maniskill_tidy.training.house_jobs import (
     check_same_config,
     run_house_jobs,
@@ -303,9 +303,7 @@ def build_demo_features(
         from maniskill_tidy.policies import team_class
 
         student = team_class(cfg.student)  # an unknown name or config fails here, in one line
-        team = env_setting(cfg)
-        team = SETTINGS[team] if isinstance(team, str) else team
-        why = getattr(student, "missing_model", lambda team: None)(tuple(map(tuple, team)))
+        why = getattr(student, "missing_model", lambda team: None)(parse_team(env_setting(cfg)))
         if why:
             raise ValueError(f"student {cfg.student!r}: {why}")
     probe = gym.make(

@@ -216,9 +216,10 @@ class Rows:
             out[:, : index.shape[1]] = torch.where(index >= 0, index + offset, -1)
             return out
 
-        common = set(self.x) & set(other.x)
+        if set(self.x) != set(other.x):  # both come from one FEATURES_VERSION, so never expected
+            raise ValueError(f"rows with inputs {sorted(self.x)} and {sorted(other.x)}")
         return Rows(
-            {k: torch.cat([self.x[k], other.x[k]]) for k in self.x if k in common},
+            {k: torch.cat([self.x[k], other.x[k]]) for k in self.x},
             {k: torch.cat([self.y[k], other.y[k]]) for k in self.y},
             torch.cat([padded(self.index, 0), padded(other.index, n)]),
             f"{self.hash}+{other.hash}",
