@@ -183,7 +183,8 @@ def test_agents_of_a_team_share_code_and_public_data_not_state(
 def test_a_learned_agent_maps_the_wide_layout_only_when_its_model_reads_it(
     small_house_public, learned_config, seeded_config, tmp_path
 ):
-    """The wide layout costs a few ms per agent-step; models without ``sw`` skip it."""
+    """The wide layout costs about 1 ms per agent-step (make bench); models without ``sw``
+    skip it."""
     public = small_house_public
     wide = seeded_config(tmp_path, "wide", "{wide_layout: true}", settings=(("I", 3),))
     for config, expect in ((learned_config, False), (wide, True)):

@@ -4,7 +4,9 @@ Agents wander with random navigation actions; each step's three 224x224 frames g
 ``SemanticMap.update`` (every pixel, and every other one: ``MapConfig(stride=2)``) and, for the
 design comparison in ``semantic_map.py``, through an open3d
 TSDF (``VoxelBlockGrid.integrate`` plus the point extraction a top-down read needs). Env step,
-map updates and TSDF alternate frame by frame, so machine load hits all of them alike.
+map updates and TSDF alternate frame by frame, so machine load hits all of them alike. The
+learned team's per-frame reads of the map are timed too: the egocentric crop every agent reads,
+and the wide layout only models with ``wide_layout`` read (``FrameReader(wide=...)``).
 """
 
 from __future__ import annotations
@@ -59,7 +61,7 @@ def bench_map(steps: int = 40, seed: int = 0) -> dict:
         maps = TeamMaps(u.house, u.instances, u.agent_names, config)
         strided = TeamMaps(u.house, u.instances, u.agent_names, MapConfig(stride=2))
         tsdf = {name: TSDFMap(config) for name in u.agent_names}
-        env_ms, map_ms, stride_ms, tsdf_ms = [], [], [], []
+        env_ms, map_ms, stride_ms, tsdf_ms, crop_ms, wide_ms = [], [], [], [], [], []
         for _ in range(steps):
             start = time.perf_counter()
             obs, *_ = env.step({n: int(rng.choice(NAV_ONLY)) for n in u.agent_names})
@@ -69,6 +71,13 @@ def bench_map(steps: int = 40, seed: int = 0) -> dict:
                 m.update(obs[name])
                 m.top_down()
                 map_ms.append((time.perf_counter() - start) * 1e3)
+                pose = np.asarray(obs[name]["pose"], dtype=np.float32)[:3]
+                start = time.perf_counter()
+                m.local_crop(pose)
+                crop_ms.append((time.perf_counter() - start) * 1e3)
+                start = time.perf_counter()
+                m.wide_layout(pose)
+                wide_ms.append((time.perf_counter() - start) * 1e3)
                 start = time.perf_counter()
                 strided.maps[name].update(obs[name])
                 strided.maps[name].top_down()
@@ -87,6 +96,8 @@ def bench_map(steps: int = 40, seed: int = 0) -> dict:
         "map_ms": statistics.median(map_ms),
         "stride2_ms": statistics.median(stride_ms),
         "tsdf_ms": statistics.median(tsdf_ms),
+        "crop_ms": statistics.median(crop_ms),
+        "wide_ms": statistics.median(wide_ms),
         "map_per_env": statistics.median(map_ms) / statistics.median(env_ms),
     }
 
@@ -97,5 +108,8 @@ def report(r: dict) -> str:
         "env step cost shared out per agent frame; map = update + top-down read)\n"
         f"{'env ms':>7} {'map ms':>7} {'map/env':>8} {'stride 2 ms':>12} {'TSDF ms':>8}\n"
         f"{r['env_ms']:>7.2f} {r['map_ms']:>7.2f} {r['map_per_env']:>8.2f} "
-        f"{r['stride2_ms']:>12.2f} {r['tsdf_ms']:>8.2f}"
+        f"{r['stride2_ms']:>12.2f} {r['tsdf_ms']:>8.2f}\n"
+        "learned inputs read off the map per agent frame (medians)\n"
+        f"{'crop ms':>8} {'wide ms':>8} {'wide/env':>9}\n"
+        f"{r['crop_ms']:>8.2f} {r['wide_ms']:>8.2f} {r['wide_ms'] / r['env_ms']:>9.2f}"
     )
