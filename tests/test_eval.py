@@ -189,6 +189,28 @@ def test_a_second_run_on_the_same_results_folder_is_refused(tmp_path):
     assert evaluate(cfg, tmp_path, progress=False)["episodes"] == 2  # free once it ends
 
 
+def test_a_learned_run_resumed_with_other_weights_is_refused(tmp_path, seeded_config):
+    """A run's episodes must all come from one model: retraining between the start and the
+    resumption of a run would otherwise mix two models' episodes in one row."""
+    import torch
+
+    config = seeded_config(tmp_path, "learned", "{}", settings=(("I", 3),))
+    cfg = RunConfig(str(config), "I", "test", None, 1)
+    evaluate(cfg, tmp_path / "out", progress=False)
+    directory = run_dir(tmp_path / "out", cfg)
+    fingerprint = json.loads((directory / "run.json").read_text())["model_hash"]
+    assert evaluate(cfg, tmp_path / "out", progress=False)["episodes"] == 1  # same weights
+    path = tmp_path / "learned" / "setting_I" / "model.pt"
+    saved = torch.load(path, weights_only=False)
+    first = next(k for k, v in saved["state"].items() if v.is_floating_point())
+    saved["state"][first] = saved["state"][first] + 1
+    torch.save(saved, path)
+    before = (directory / "episodes.jsonl").read_bytes()
+    with pytest.raises(ValueError, match=f"model_hash.*{fingerprint}"):
+        evaluate(cfg, tmp_path / "out", progress=False)
+    assert (directory / "episodes.jsonl").read_bytes() == before
+
+
 def test_the_expert_solves_most_standard_test_episodes(tmp_path):
     cfg = RunConfig("expert", "I", "test", None, "standard")
     summary = evaluate(cfg, tmp_path, workers=2, progress=False)

@@ -257,6 +257,9 @@ def evaluate(
             "dataset_hash": episodes.dataset_hash,
             "episode_count": len(chosen),
         }
+        model = getattr(team_cls, "model_hash", lambda team: None)(members)
+        if model is not None:  # a learned team: resuming with other weights is refused below
+            config["model_hash"] = model
         config_path = directory / "run.json"
         version = code_version()  # of the code that runs the episodes, taken before they run
         versions = [version]

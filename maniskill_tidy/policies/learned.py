@@ -15,6 +15,7 @@ channel, so AvgCom counts all of it.
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import ClassVar
@@ -338,6 +339,24 @@ class LearnedTeam(Team):
         return (
             f"{path} not found; train it with `maniskill-tidy train {config} --setting {setting}`"
         )
+
+    @classmethod
+    def model_hash(cls, team: tuple) -> str:
+        """A fingerprint of the weights this team plays with (decision and perception): an eval
+        run resumed after a retraining that changed them is refused rather than mixing two
+        models."""
+        from maniskill_tidy.training.decision_trainer import AgentConfig
+
+        cfg = AgentConfig.load(resolve(cls.config_file))
+        digest = hashlib.sha256()
+        for folder in (resolve(cfg.out) / f"setting_{cls.trained_setting(team)}",
+                       resolve(cfg.perception)):  # fmt: skip
+            # the weights, not the file: a retraining that reproduces them keeps the hash
+            state = torch.load(folder / "model.pt", weights_only=False)["state"]
+            for key in sorted(state):
+                digest.update(key.encode())
+                digest.update(state[key].cpu().contiguous().numpy().tobytes())
+        return digest.hexdigest()[:16]
 
     def models(self, capabilities: list) -> tuple:
         """The decision model trained for this team, and the frozen perception model."""
