@@ -139,6 +139,27 @@ def _leaderboard(args: argparse.Namespace) -> int:
     return 0
 
 
+def _compare(args: argparse.Namespace) -> int:
+    from maniskill_tidy.eval.metrics import METRICS, paired_difference
+    from maniskill_tidy.eval.runner import read_records
+
+    runs = []
+    for folder in (Path(args.a), Path(args.b)):
+        path = folder if folder.suffix == ".jsonl" else folder / "episodes.jsonl"
+        if not path.is_file():
+            raise ValueError(f"{folder}: no episodes.jsonl; expected an eval run's folder")
+        runs.append(read_records(path))
+    d = paired_difference(*runs)
+    print(f"A - B over the {d['episodes']} episodes both played (95 % paired interval)")
+    print(f"{'metric':>8} {'A - B':>8} {'interval':>20} {'A better':>9} {'A worse':>8}")
+    for m in METRICS:
+        r = d[m]
+        lo, hi = r["ci95"]
+        print(f"{m:>8} {r['difference']:>+8.3f} {f'[{lo:+.3f}, {hi:+.3f}]':>20} "
+              f"{r['better']:>9} {r['worse']:>8}")  # fmt: skip
+    return 0
+
+
 def _replay(args: argparse.Namespace) -> int:
     import shutil
     import subprocess
@@ -596,6 +617,13 @@ def build_parser() -> argparse.ArgumentParser:
     lb = sub.add_parser("leaderboard", help="eval/LEADERBOARD.md and a plot from run summaries")
     lb.add_argument("--root", default="eval", help="folder holding results/ (default eval)")
     lb.set_defaults(func=_leaderboard)
+
+    cp = sub.add_parser(
+        "compare", help="two eval runs of the same episodes: paired differences of every metric"
+    )
+    cp.add_argument("a", help="run folder (eval/results/setting_I/NAME) or its episodes.jsonl")
+    cp.add_argument("b", help="the run to compare with, on the same split")
+    cp.set_defaults(func=_compare)
 
     rp = sub.add_parser("replay", help="open an episode recording (.rrd) in the rerun viewer")
     rp.add_argument("file")

@@ -163,3 +163,15 @@ def test_training_an_agent_config_refuses_the_perception_options_instead_of_igno
     line = one_line_error(cli("train", str(config), "--out", str(out)), "--out", "base:")
     assert str(config) in line
     assert not out.exists() and not (tmp_path / "setting_I").exists()
+
+
+def test_compare_refuses_a_folder_without_episodes_and_runs_with_nothing_in_common(tmp_path):
+    one_line_error(cli("compare", str(tmp_path / "nowhere"), str(tmp_path)), "nowhere",
+                   "episodes.jsonl")  # fmt: skip
+    line = {"task_kind": "Single", "k": 1, "success": True, "reasonable": 1, "found": 1,
+            "length": 9, "comm": 0, "agents": 3, "seed": 0}  # fmt: skip
+    for name in ("a", "b"):
+        (tmp_path / name).mkdir()
+        record = json.dumps({**line, "episode": f"only-{name}"})
+        (tmp_path / name / "episodes.jsonl").write_text(record + "\n")
+    one_line_error(cli("compare", str(tmp_path / "a"), str(tmp_path / "b")), "no episode in common")

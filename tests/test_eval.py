@@ -62,6 +62,26 @@ def test_metrics_follow_the_paper_definitions():
     assert m["All"]["episodes"] == 3
 
 
+def test_paired_differences_use_only_the_episodes_both_runs_played():
+    from dataclasses import replace
+
+    from maniskill_tidy.eval.metrics import paired_difference
+
+    b = [replace(rec("Single", 4, 1, 2, 300, 0), episode=f"e{i}") for i in range(6)]
+    a = [replace(r, reasonable=3, found=4) if i < 2 else r for i, r in enumerate(b)]
+    a.append(replace(b[0], episode="only-in-a", reasonable=4, success=True))
+    d = paired_difference(a, b)
+    assert d["episodes"] == 6
+    assert d["%PS"]["difference"] == pytest.approx(2 * (3 - 1) / 4 / 6)
+    assert (d["%PS"]["better"], d["%PS"]["worse"]) == (2, 0)
+    assert d["%FM"]["difference"] == pytest.approx(2 * (4 - 2) / 4 / 6)
+    assert d["Success"]["difference"] == 0 and d["Success"]["ci95"] == [0.0, 0.0]
+    lo, hi = d["%PS"]["ci95"]
+    assert 0 <= lo < d["%PS"]["difference"] < hi
+    with pytest.raises(ValueError, match="no episode in common"):
+        paired_difference(a[-1:], b)
+
+
 def test_ces_against_the_single_agent_baseline():
     assert ces(0.103, 0.038, 364.6) == pytest.approx(1.78, abs=0.01)  # the paper's "Ours", I
     assert ces(0.03, 0.038, 20.0) == 0.0  # worse than SA: clipped at 0

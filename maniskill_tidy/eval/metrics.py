@@ -91,6 +91,26 @@ def summarize(records: list[EpisodeRecord]) -> dict[str, dict]:
     }
 
 
+def paired_difference(a: list[EpisodeRecord], b: list[EpisodeRecord]) -> dict:
+    """Per metric, the mean of A - B over the episodes both runs played, with a 95 % interval
+    from resampling those episodes (the pair kept together) and how many episodes A did better
+    or worse on. Pairing removes the spread between episodes, which dominates the intervals of
+    two separate means on tens of episodes."""
+    by_id = {r.episode: r for r in b}
+    shared = [r.episode for r in a if r.episode in by_id]
+    if not shared:
+        raise ValueError("the two runs have no episode in common; expected runs of one split")
+    mine = {r.episode: r for r in a}
+    va = per_episode([mine[e] for e in shared])
+    vb = per_episode([by_id[e] for e in shared])
+    out: dict = {"episodes": len(shared)}
+    for m in METRICS:
+        d = va[m] - vb[m]
+        out[m] = {"difference": float(d.mean()), "ci95": bootstrap_ci(d),
+                  "better": int((d > 0).sum()), "worse": int((d < 0).sum())}  # fmt: skip
+    return out
+
+
 def ces(success: float, success_sa: float, acm: float) -> float | None:
     """Communication efficiency score; None when nothing was sent."""
     if acm <= 0:
