@@ -281,6 +281,7 @@ def test_leaderboard_assembles_ces_intervals_and_notes(tmp_path):
             "hangrcom", [True, False, True, False] * 5, 240, communication="hangrcom"
         ),
     }
+    runs["hangrcom"]["model_hash"] = "42e96e191cad5d14"
     for policy, s in runs.items():
         path = tmp_path / "results" / "setting_I" / policy / "summary.json"
         path.parent.mkdir(parents=True)
@@ -308,6 +309,9 @@ def test_leaderboard_assembles_ces_intervals_and_notes(tmp_path):
     assert not any("Ours *(paper)*" in line for line in lines[ours + 2 : table_end])
     assert (tmp_path / "leaderboard.png").read_bytes()[:4] == b"\x89PNG"
     assert "full protocol (every start" not in md  # no run of it yet
+    runs_table = lines[lines.index("Runs:") + 2 :]
+    weights = {r.split("|")[1].strip(): r.split("|")[8].strip() for r in runs_table if "|" in r}
+    assert weights["hangrcom"] == "42e96e191cad5d14" and weights["sa"] == "-"
 
 
 def test_a_full_protocol_run_gets_its_own_table_beside_the_standard_row(tmp_path):

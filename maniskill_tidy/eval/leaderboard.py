@@ -185,9 +185,9 @@ def _paper_row(name: str, reference: dict, setting: str, kind: str = "rows") -> 
 
 def details(runs: dict[str, dict]) -> str:
     lines = [
-        "| Method | team | communication | perception | protocol | episodes | dataset | code "
-        "| s/episode |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| Method | team | communication | perception | protocol | episodes | dataset | weights "
+        "| code | s/episode |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for policy, s in sorted(runs.items()):
         code = ", ".join(s.get("code_versions") or [s["code_version"]])
@@ -195,7 +195,8 @@ def details(runs: dict[str, dict]) -> str:
             code += " (mixed)"
         lines.append(
             f"| {policy} | {s['team']} | {s['communication']} | {s['perception'] or '-'} | "
-            f"{s.get('protocol', '-')} | {s['episodes']} | {s['dataset_hash'][:12]} | {code} | "
+            f"{s.get('protocol', '-')} | {s['episodes']} | {s['dataset_hash'][:12]} | "
+            f"{s.get('model_hash') or '-'} | {code} | "
             f"{s['episode_seconds_mean']} |"
         )
     return "\n".join(lines)

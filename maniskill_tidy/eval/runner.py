@@ -340,6 +340,7 @@ def evaluate(
             "perception": getattr(team_cls, "perception", ""),
             "dataset": cfg.dataset or "default (shipped with the package)",
             "dataset_hash": episodes.dataset_hash,
+            "model_hash": config.get("model_hash"),  # a learned team's weights; None otherwise
             "code_version": versions[-1],
             "code_versions": versions,  # every version that ran part of this run (resumed runs)
             "mixed_code_versions": len(versions) > 1,
