@@ -237,6 +237,11 @@ def test_an_ope_threshold_lets_a_likely_operation_win_over_the_argmax():
     assert len({g.dx for g in drawn}) == 9  # drawn from the uniform head, seeded
     again = [decode(logits, rng=np.random.default_rng(0)).subgoal.dx for _ in range(1)]
     assert again[0] == drawn[0].dx
+    logits["dx"] = torch.log(torch.tensor([0.3] + [0.7 / 8] * 8))  # dx = -4 likeliest, 30 %
+    for t, low, high in ((1.0, 0.2, 0.4), (0.25, 0.9, 1.0)):
+        rng = np.random.default_rng(1)
+        dx = [decode(logits, rng=rng, temperature=t).subgoal.dx for _ in range(400)]
+        assert low <= dx.count(-4) / 400 <= high, t  # T = 0.25: 0.3^4 against 8 x 0.0875^4
 
 
 def test_auc_is_the_chance_a_positive_outranks_a_negative():
@@ -451,3 +456,14 @@ def test_a_student_without_a_trained_model_is_refused_before_anything_is_written
     with pytest.raises(ValueError, match="student .*model.pt not found; train it"):
         build_demo_features(tmp_path / "demos", str(small_dataset), cfg, progress=False)
     assert not (tmp_path / "demos").exists()
+
+
+def test_a_config_refuses_a_subgoal_temperature_that_is_not_positive(tmp_path):
+    from maniskill_tidy.training.decision_trainer import AgentConfig
+
+    config = tmp_path / "t.yaml"
+    config.write_text(
+        f"name: t\nout: {tmp_path}\nact: {{sample_subgoal: true, subgoal_temperature: 0}}\n"
+    )
+    with pytest.raises(ValueError, match="subgoal_temperature 0: expected a number above 0"):
+        AgentConfig.load(config).acting()

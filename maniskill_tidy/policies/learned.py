@@ -72,15 +72,17 @@ def decode(
     logits: dict[str, torch.Tensor],
     ope_threshold: float | None = None,
     rng: np.random.Generator | None = None,
+    temperature: float = 1.0,
 ) -> Decision:
     """The argmax of every head, as the paper's sub-task and sub-goal; with ``ope_threshold``
     the likeliest operation wherever its probability exceeds the threshold; with ``rng``
-    dx, dy and drot drawn from their heads."""
+    dx, dy and drot drawn from their heads, sharpened by a ``temperature`` below 1."""
     catalog = load_catalog()
     best = {k: int(v.reshape(-1, v.shape[-1])[-1].argmax()) for k, v in logits.items()}
     if rng is not None:
         for head in ("dx", "dy", "drot"):
-            p = logits[head].reshape(-1, logits[head].shape[-1])[-1].double().softmax(-1)
+            z = logits[head].reshape(-1, logits[head].shape[-1])[-1].double()
+            p = (z / temperature).softmax(-1)
             best[head] = int(rng.choice(len(p), p=(p / p.sum()).numpy()))
     if ope_threshold is not None:
         p = logits["ope"].reshape(-1, len(OPERATIONS))[-1].softmax(-1)
@@ -132,6 +134,7 @@ class LearnedAgent(PerceivingAgent):
         self.commit: tuple | None = None  # (cell, rotation, ope, stop, subtask, since step)
         acting = team.config.acting()
         self.ope_threshold = acting.ope_threshold
+        self.temperature = acting.subgoal_temperature
         self.sampler = (
             np.random.default_rng([public.seed, self.i, 13]) if acting.sample_subgoal else None
         )
@@ -194,7 +197,7 @@ class LearnedAgent(PerceivingAgent):
             action = self._act_direct(logits["action"].reshape(-1, len(Action))[-1])
             self._last_op = action.action if isinstance(action, Targeted) else action
             return action
-        d = decode(logits, self.ope_threshold, self.sampler)
+        d = decode(logits, self.ope_threshold, self.sampler, self.temperature)
         self.prev_task = task_indices(logits)
         self._label = (d.subtask, d.subgoal)
         ex = self.exchange

@@ -84,6 +84,9 @@ class ActSettings:
     # argmax: the teacher's moves are spread over many cells, and the argmax of each axis
     # alone names one fixed cell that an agent walks to, or stays at, step after step.
     sample_subgoal: bool = False
+    # With sample_subgoal: draw from softmax(logits / T). Below 1 the draws stay nearer the
+    # likeliest cell (towards the argmax as T -> 0), above 1 they spread out.
+    subgoal_temperature: float = 1.0
     # SA(Oracle) (paper Section 6.3): the misplaced objects' locations are given at reset. With
     # nothing in hand the agent walks to the nearest one it has not picked up instead of
     # exploring, and knows which objects in view are misplaced; the same trained model decides
@@ -160,6 +163,10 @@ class AgentConfig:
         a = ActSettings(**self.act)
         if a.ope_threshold is not None and not 0 < a.ope_threshold < 1:
             raise ValueError(f"act ope_threshold {a.ope_threshold!r}: expected a probability")
+        if not a.subgoal_temperature > 0:
+            raise ValueError(
+                f"act subgoal_temperature {a.subgoal_temperature!r}: expected a number above 0"
+            )
         return a
 
     def settings(self) -> TrainSettings:
