@@ -307,11 +307,10 @@ class LearnedTeam(Team):
 
     config_file: ClassVar[Path] = DEFAULT_CONFIG
 
-    def __init__(self, config: str | Path | None = None) -> None:
+    def __init__(self) -> None:
         from maniskill_tidy.training.decision_trainer import AgentConfig
 
-        self.config_path = resolve(config or self.config_file)
-        self.config = AgentConfig.load(self.config_path)
+        self.config = AgentConfig.load(resolve(self.config_file))
         self._loaded: dict = {}
 
     @classmethod
@@ -329,15 +328,23 @@ class LearnedTeam(Team):
         return setting
 
     @classmethod
+    def model_folder(cls, team) -> Path:
+        """Where the decision model that plays this team of capabilities is saved."""
+        from maniskill_tidy.training.decision_trainer import AgentConfig
+
+        out = AgentConfig.load(resolve(cls.config_file)).out
+        return resolve(out) / f"setting_{cls.trained_setting(team)}"
+
+    @classmethod
     def missing_model(cls, team: tuple) -> str | None:
         from maniskill_tidy.training.decision_trainer import AgentConfig
 
         setting = cls.trained_setting(team)
-        out = AgentConfig.load(resolve(cls.config_file)).out
-        path = resolve(out) / f"setting_{setting}" / "model.pt"
+        path = cls.model_folder(team) / "model.pt"
         if path.is_file():
             return None
         # an oracle acts with another config's model (SA(Oracle): agents/sa.yaml's)
+        out = AgentConfig.load(resolve(cls.config_file)).out
         config = f"{out}.yaml" if cls.oracle else cls.config_file
         return (
             f"{path} not found; train it with `maniskill-tidy train {config} --setting {setting}`"
@@ -352,8 +359,7 @@ class LearnedTeam(Team):
 
         cfg = AgentConfig.load(resolve(cls.config_file))
         digest = hashlib.sha256()
-        for folder in (resolve(cfg.out) / f"setting_{cls.trained_setting(team)}",
-                       resolve(cfg.perception)):  # fmt: skip
+        for folder in (cls.model_folder(team), resolve(cfg.perception)):
             # the weights, not the file: a retraining that reproduces them keeps the hash
             state = torch.load(folder / "model.pt", weights_only=False)["state"]
             for key in sorted(state):
@@ -371,7 +377,7 @@ class LearnedTeam(Team):
             # Batch-of-one inference: one thread is fastest, and several contend with the
             # other evaluation workers (measured 2-20 x slower on 2 busy cores).
             torch.set_num_threads(1)
-            model, _ = load_model(resolve(self.config.out) / f"setting_{setting}")
+            model, _ = load_model(self.model_folder(capabilities))
             perception = load_agent(resolve(self.config.perception))
             self._loaded[setting] = (model, perception)
         return self._loaded[setting]
