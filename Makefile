@@ -52,9 +52,10 @@ leaderboard: setup
 # The paper's learned model, on CPU. Perception (issue 12): render the views of the 120-house
 # dataset's houses (resumable per house), train every stage with and without the knowledge
 # graph (resumable per epoch), report on the test split; writes agents/perception/. Then the
-# hierarchical decision with HanGrCom by behaviour cloning, per setting: render the expert's
-# demonstrations with every agent's inputs (data/demos, resumable per house), embed them with
-# the frozen perception, train (resumable per epoch); writes agents/hangrcom/setting_*/.
+# hierarchical decision with HanGrCom by behaviour cloning, per setting: render the teacher's
+# demonstrations with every agent's inputs (agents/hangrcom.yaml's `demos:`, resumable per
+# house), embed them with the frozen perception, train (resumable per epoch); writes
+# agents/hangrcom/setting_*/ and its MODEL_CARD.md (training time, demonstrations, hashes).
 TRAIN_SETTINGS ?= I II
 train: setup
 	test -f $(DATA120)/manifest.json || $(PY) -m maniskill_tidy.cli generate --houses 120 --seed 0 --workers 2 --out $(DATA120)
@@ -63,7 +64,8 @@ train: setup
 	for s in $(TRAIN_SETTINGS); do $(PY) -m maniskill_tidy.cli train agents/hangrcom.yaml --setting $$s || exit 1; done
 
 # The paper's baselines and ablations (agents/*.yaml besides hangrcom.yaml): each trains on the
-# same demonstrations and features as hangrcom (built if missing), hangrcom took 11 min (I) and 25 min (II).
+# same demonstrations and features as hangrcom (built if missing); each takes about as long as
+# hangrcom's training (its MODEL_CARD.md: 43 min for Setting I on 2 cores).
 VARIANTS ?= broadcomm condcomm cmprcomm intencomm centralcomm wo_comm wo_know wo_misobjdec wo_rearecpre wo_hierdec
 train-all: setup
 	for v in $(VARIANTS); do for s in $(TRAIN_SETTINGS); do \
