@@ -15,10 +15,12 @@ from maniskill_tidy.envs.actions import Action
 from maniskill_tidy.knowledge import load_catalog
 from maniskill_tidy.models.decision import (
     DecisionConfig,
+    StateExtractor,
     SubGoalPredictor,
     TeamDecision,
     crop_goal,
     crop_layout,
+    suspects,
 )
 from maniskill_tidy.policies.base import OPERATIONS
 from maniskill_tidy.training.decision_data import (
@@ -136,6 +138,10 @@ def test_features_line_up_with_the_rows(rows):
     assert wide[-1, ..., 1].sum() > wide[0, ..., 1].sum() > 0
     assert present.shape[-1] == 3 and all(y["dx"][present[..., i]].min() >= 0
                                           for i, y in enumerate(ys))  # fmt: skip
+    suspect = train.x["suspect"].float()
+    assert suspect.shape == (n, len(load_catalog().pickupable)) and suspect.max() <= 1
+    assert suspect.max() > 0, "the expert's agents see misplaced objects"
+    assert (train.x["det"][suspect.amax(1) > 0] == 1).all(), "a suspect is a detection"
 
 
 def test_behaviour_cloning_learns_is_seeded_and_resumes(rows, tmp_path):
@@ -215,6 +221,52 @@ def test_goal_map_points_at_the_subtask_target_object_or_receptacle():
     assert SubGoalPredictor(cfg).goal(x, task)[0, 0].sum() < 1e-3  # no mug in the crop
     with pytest.raises(ValueError, match="goal_map needs layout"):
         SubGoalPredictor(replace(cfg, layout=False))
+
+
+def test_suspects_keep_each_pickupable_types_highest_misplaced_probability():
+    catalog = load_catalog()
+    kinds = [catalog.category_index(t) for t in ("Apple", "Apple", "DiningTable", "Mug")]
+    out = suspects(torch.tensor([0, 0, 0, 1]), torch.tensor(kinds),
+                   torch.tensor([0.3, 0.8, 0.9, 0.5]), 2, len(catalog.pickupable))  # fmt: skip
+    apple, mug = catalog.pickupable.index("Apple"), catalog.pickupable.index("Mug")
+    assert out.shape == (2, len(catalog.pickupable))
+    assert out[0, apple] == pytest.approx(0.8) and out[0].sum() == pytest.approx(0.8)  # no table
+    assert out[1, mug] == pytest.approx(0.5) and out[1].sum() == pytest.approx(0.5)
+
+
+def _state_inputs(t: int, objects: int, rng: np.random.Generator) -> dict[str, torch.Tensor]:
+    def f(*shape):
+        return torch.from_numpy(rng.normal(size=(1, t, *shape)).astype(np.float32))
+
+    suspect = torch.zeros(1, t, objects)
+    suspect[0, 0, 5] = 0.9  # in view at the first step only
+    return dict(sv=f(256), sm=f(256), fd=f(256), fp=f(256), failed=torch.zeros(1, t),
+                mis=torch.rand(1, t), det=torch.ones(1, t), pose=f(4), held=torch.full((1, t), -1),
+                va=torch.ones(1, t, 3), suspect=suspect)  # fmt: skip
+
+
+def test_the_suspect_memory_carries_a_sighting_and_steps_as_the_episode_trains():
+    """Step by step (acting) gives the whole-episode forward's sf (training), and a misplaced
+    object seen at the first step still changes sf at the last."""
+    torch.manual_seed(0)
+    cfg = DecisionConfig(suspects=True)
+    f = StateExtractor(cfg).eval()
+    x = _state_inputs(6, cfg.objects, np.random.default_rng(0))
+    with torch.no_grad():
+        whole, (_, memory) = f(x)
+        state, steps = None, []
+        for t in range(6):
+            sf, state = f({k: v[:, t : t + 1] for k, v in x.items()}, state)
+            steps.append(sf)
+        assert torch.allclose(torch.cat(steps, 1), whole, atol=1e-5)
+        assert memory[0, 5] == pytest.approx(0.9) and state[1][0, 5] == pytest.approx(0.9)
+        lstm, memory = f({k: v[:, :1] for k, v in x.items()})[1]  # after the sighting
+        late = {k: v[:, 1:] for k, v in x.items()}  # the steps after it: the type not in view
+        remembered = f(late, (lstm, memory))[0]
+        assert not torch.allclose(remembered, f(late, (lstm, torch.zeros_like(memory)))[0])
+        unseen = {**x, "suspect": torch.zeros_like(x["suspect"])}
+        blind = StateExtractor(replace(cfg, misplaced_detector=False)).eval()
+        assert torch.equal(blind(x)[0], blind(unseen)[0]), "w/o MisObjDec. has no suspects"
 
 
 def test_an_ope_threshold_lets_a_likely_operation_win_over_the_argmax():

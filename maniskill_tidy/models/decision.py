@@ -25,6 +25,11 @@ addition to the paper's F_g inputs (``sm`` alone did not place a target: README,
 team"). With ``wide_layout`` F_g also reads ``sw``, a second CNN of the same shape over the
 agent's whole map at 1 m per cell (``semantic_map.wide_layout``): the 5 m crop rarely holds the
 frontier the exploring teacher walks to (on val it did not help: README, "The learned team").
+With ``suspects`` F_s also reads, per pickupable type, the detector's highest probability that
+a detection of that type is misplaced, in this frame and over the episode so far (a running
+maximum kept as part of F_s's recurrent state): on val, F_a named the teacher's target type on
+13 % of Place steps (the model card) though the agent had itself detected that type before on
+82 % of them (``scripts/object_memory.py``), and ``fd`` carries one detection per frame.
 """
 
 from __future__ import annotations
@@ -81,6 +86,7 @@ class DecisionConfig:
     layout: bool = False  # F_g reads sl (the crop's geometry) too
     wide_layout: bool = False  # F_g reads sw (the whole map's coarse layout) too
     goal_map: bool = False  # sl also reads the sub-task's target in the crop (needs layout)
+    suspects: bool = False  # F_s reads per-type misplaced probabilities, now and the episode's max
     communication: str = "hangrcom"  # or a baseline of models/communication.py
     # ablations (paper Section 6.5): without the misplaced-object detector F_s gets no fd and no
     # misplaced probability, without the reasonable-receptacle predictor no fp (zeros: the
@@ -91,6 +97,27 @@ class DecisionConfig:
     hierarchical: bool = True
     mu: float = MU
     delta: float = DELTA
+
+
+@lru_cache(maxsize=1)
+def pickupable_index() -> np.ndarray:
+    """Per catalog category (a detection's type), its index among the pickupable types (-1:
+    not pickupable)."""
+    catalog = load_catalog()
+    where = {name: i for i, name in enumerate(catalog.pickupable)}
+    return np.array([where.get(name, -1) for name in catalog.categories])
+
+
+def suspects(det_row: torch.Tensor, det_type: torch.Tensor, p: torch.Tensor, frames: int,
+             objects: int) -> torch.Tensor:  # fmt: skip
+    """(frames, objects): per pickupable type, the highest probability ``p`` the detector gives
+    a detection of that type in the frame of being misplaced (0: none of that type in view).
+    Detections are flat, ``det_row`` naming each one's frame."""
+    kind = torch.from_numpy(pickupable_index())[det_type.long()]
+    keep = kind >= 0
+    out = torch.zeros(frames * objects)
+    out.scatter_reduce_(0, det_row[keep].long() * objects + kind[keep], p[keep].float(), "amax")
+    return out.reshape(frames, objects)
 
 
 def encode_pose(pose: torch.Tensor) -> torch.Tensor:
@@ -153,23 +180,30 @@ class StateExtractor(nn.Module):
         super().__init__()
         self.cfg = cfg
         self.held = nn.Embedding(cfg.categories + 1, 16)  # index 0: holds nothing
-        width = 3 + POSE + 16 + 1 + 2 * cfg.perception + 2
+        width = 3 + POSE + 16 + 1 + 2 * cfg.perception + 2 + 2 * cfg.objects * cfg.suspects
         self.fuse = nn.Sequential(nn.Linear(width, cfg.state), nn.ReLU())
         self.lstm = nn.LSTM(cfg.state, cfg.state, batch_first=True)
 
     def forward(self, x: dict[str, torch.Tensor], state=None):
-        """Inputs (B, T, ·) -> sf (B, T, state) and the LSTM state."""
+        """Inputs (B, T, ·) -> sf (B, T, state) and the recurrent state: the LSTM's, and with
+        ``suspects`` the running maximum (B, objects) too."""
+        lstm_state, memory = state if state is not None else (None, None)
         fd, fp, mis = x["fd"], x["fp"], x["mis"][..., None]
         if not self.cfg.misplaced_detector:
             fd, mis = torch.zeros_like(fd), torch.zeros_like(mis)
         if not self.cfg.receptacle_predictor:
             fp = torch.zeros_like(fp)
-        z = torch.cat(
-            [x["va"], encode_pose(x["pose"]), self.held(x["held"] + 1), x["failed"][..., None],
-             fd, fp, mis, x["det"][..., None]],
-            dim=-1,
-        )  # fmt: skip
-        return self.lstm(self.fuse(z), state)
+        parts = [x["va"], encode_pose(x["pose"]), self.held(x["held"] + 1),
+                 x["failed"][..., None], fd, fp, mis, x["det"][..., None]]  # fmt: skip
+        if self.cfg.suspects:
+            now = x["suspect"].float() * self.cfg.misplaced_detector
+            so_far = torch.cummax(now, dim=1).values
+            if memory is not None:
+                so_far = torch.maximum(so_far, memory[:, None])
+            parts += [now, so_far]
+            memory = so_far[:, -1]
+        sf, lstm_state = self.lstm(self.fuse(torch.cat(parts, dim=-1)), lstm_state)
+        return sf, (lstm_state, memory)
 
 
 class SubTaskPredictor(nn.Module):

@@ -27,7 +27,7 @@ from maniskill_tidy.envs.actions import Action, Targeted
 from maniskill_tidy.envs.robots import robot_kind
 from maniskill_tidy.knowledge import ROOM_TYPES, load_catalog
 from maniskill_tidy.models.communication import TASK
-from maniskill_tidy.models.decision import crop_goal, crop_layout
+from maniskill_tidy.models.decision import crop_goal, crop_layout, suspects
 from maniskill_tidy.policies.base import (
     EXPLORE,
     OPERATIONS,
@@ -159,6 +159,11 @@ class LearnedAgent(PerceivingAgent):
             x["goal"] = torch.from_numpy(crop_goal(f.crop))[None, None]
         if self.decision.cfg.wide_layout:
             x["wide"] = torch.from_numpy(f.wide)[None, None]
+        if self.decision.cfg.suspects:
+            x["suspect"] = suspects(
+                torch.zeros(len(f.det_type), dtype=torch.long), torch.from_numpy(f.det_type),
+                torch.from_numpy(self.p_detections), 1, self.decision.cfg.objects,
+            )[None]  # fmt: skip
         self.x = x
         with torch.no_grad():
             sf, state = self.decision.state(x, self.lstm[0])

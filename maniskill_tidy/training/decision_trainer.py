@@ -44,6 +44,7 @@ from maniskill_tidy.models.decision import (
     TeamDecision,
     crop_goal,
     crop_layout,
+    suspects,
 )
 from maniskill_tidy.policies.base import OPERATIONS
 from maniskill_tidy.tasks.dataset import write_atomic
@@ -251,7 +252,8 @@ class Rows:
         return xs, present, ys
 
 
-FEATURES_VERSION = 4  # 2: the crop's layout; 3: its goal channels (crop_goal); 4: the wide layout
+FEATURES_VERSION = 5  # 2: the crop's layout; 3: its goal channels (crop_goal); 4: the wide layout;
+# 5: the per-type misplaced probabilities (models.decision.suspects)
 
 
 def _feature_hash(demos_hash: str, perception: Path) -> str:
@@ -302,6 +304,10 @@ def embed_split(directory: Path, perception_dir: Path, cache: Path, progress: bo
                 parts.setdefault(name, []).append(f[name].half())
             for name in ("mis", "det"):
                 parts.setdefault(name, []).append(f[name])
+            suspect = suspects(torch.from_numpy(d["det_row"][dets] - sl.start),
+                               torch.from_numpy(d["det_type"][dets]), f["p_detections"],
+                               sl.stop - sl.start, len(load_catalog().pickupable))  # fmt: skip
+            parts.setdefault("suspect", []).append(suspect.half())
             layout = crop_layout(crop.reshape(-1, g, g, k + 2))
             parts.setdefault("layout", []).append(torch.from_numpy(layout))
             goal = crop_goal(crop.reshape(-1, g, g, k + 2))
@@ -314,7 +320,8 @@ def embed_split(directory: Path, perception_dir: Path, cache: Path, progress: bo
             keys.append((episodes + int(e), int(t), int(a)))
         episodes += len(json.loads(str(d["episodes"])))
     cat = {name: torch.cat(v) for name, v in parts.items()}
-    x = {name: cat[name] for name in (*FEATURES, "mis", "det", "layout", "goal", "wide")}
+    x = {name: cat[name]
+         for name in (*FEATURES, "mis", "det", "suspect", "layout", "goal", "wide")}  # fmt: skip
     x["failed"] = cat["failed"].float()
     x["pose"] = cat["pose"].float()
     x["va"] = cat["capability"].float()
@@ -336,7 +343,8 @@ def embed_split(directory: Path, perception_dir: Path, cache: Path, progress: bo
 def used_input(name: str, cfg: DecisionConfig) -> bool:
     """Whether a model with ``cfg`` reads the cached input ``name`` (the goal channels are
     340 MB per 63k rows)."""
-    return {"layout": cfg.layout, "goal": cfg.goal_map, "wide": cfg.wide_layout}.get(name, True)
+    return {"layout": cfg.layout, "goal": cfg.goal_map, "wide": cfg.wide_layout,
+            "suspect": cfg.suspects}.get(name, True)  # fmt: skip
 
 
 # ------------------------------------------------------------------- loss and metrics
