@@ -39,8 +39,10 @@ def main() -> None:
             if target[row] >= 0:
                 labelled += 1
                 own += int(target[row]) in so_far
-    print(f"{len(shards)} houses, {labelled} steps with a target object; its type was among the "
-          f"agent's own detections so far on {own / max(labelled, 1):.3f} of them")
+    print(
+        f"{len(shards)} houses, {labelled} steps with a target object; its type was among the "
+        f"agent's own detections so far on {own / max(labelled, 1):.3f} of them"
+    )
 
 
 if __name__ == "__main__":
