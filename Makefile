@@ -65,12 +65,14 @@ train: setup
 
 # The paper's baselines and ablations (agents/*.yaml besides hangrcom.yaml): each trains on the
 # same demonstrations and features as hangrcom (built if missing); each takes about as long as
-# hangrcom's training (its MODEL_CARD.md: 43 min for Setting I on 2 cores).
+# hangrcom's training (its MODEL_CARD.md: 43 min for Setting I on 2 cores). SA trains on its own
+# team's demonstrations (SA(Oracle) uses its checkpoint); QMIX learns by playing (agents/qmix.yaml).
 VARIANTS ?= broadcomm condcomm cmprcomm intencomm centralcomm wo_comm wo_know wo_misobjdec wo_rearecpre wo_hierdec
 train-all: setup
 	for v in $(VARIANTS); do for s in $(TRAIN_SETTINGS); do \
 		$(PY) -m maniskill_tidy.cli train agents/$$v.yaml --setting $$s || exit 1; done; done
 	$(PY) -m maniskill_tidy.cli train agents/sa.yaml --setting I  # one manipulator: every setting
+	for s in $(TRAIN_SETTINGS); do $(PY) -m maniskill_tidy.cli train agents/qmix.yaml --setting $$s || exit 1; done
 
 lint: setup
 	$(PY) -m ruff check maniskill_tidy tests
