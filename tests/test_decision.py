@@ -519,3 +519,15 @@ def test_a_config_refuses_a_subgoal_temperature_that_is_not_positive(tmp_path):
     )
     with pytest.raises(ValueError, match="subgoal_temperature 0: expected a number above 0"):
         AgentConfig.load(config).acting()
+
+
+def test_each_variants_runs_line_says_what_it_leaves_out():
+    from maniskill_tidy.policies.learned import learned_team_class
+
+    names = ("hangrcom", "wo_comm", "wo_hierdec", "wo_misobjdec", "wo_know")
+    line = {name: learned_team_class(f"agents/{name}.yaml").perception for name in names}
+    assert line["hangrcom"].endswith("hierarchical decision, HanGrCom")
+    assert line["wo_comm"].endswith("hierarchical decision, no communication")
+    assert "low-level (no sub-tasks) decision" in line["wo_hierdec"]
+    assert line["wo_misobjdec"].endswith("without misplaced-object detector")
+    assert "agents/perception/no-knowledge" in line["wo_know"]

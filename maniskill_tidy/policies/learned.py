@@ -27,7 +27,7 @@ from maniskill_tidy.envs.actions import Action, Targeted
 from maniskill_tidy.envs.robots import robot_kind
 from maniskill_tidy.knowledge import ROOM_TYPES, load_catalog
 from maniskill_tidy.models.communication import TASK
-from maniskill_tidy.models.decision import crop_goal, crop_layout, suspects
+from maniskill_tidy.models.decision import DecisionConfig, crop_goal, crop_layout, suspects
 from maniskill_tidy.policies.base import (
     EXPLORE,
     OPERATIONS,
@@ -395,13 +395,31 @@ class LearnedTeam(Team):
         return LearnedCentral(public, outbox, model.central) if model.central else None
 
 
+def describe(perception: str, decision: DecisionConfig) -> str:
+    """The runs table's line for a variant: its perception and what its decision leaves out."""
+    cut = [name for name, kept in (("misplaced-object detector", decision.misplaced_detector),
+                                   ("receptacle predictor", decision.receptacle_predictor))
+           if not kept]  # fmt: skip
+    comm = {"hangrcom": "HanGrCom", "none": "no communication"}.get(
+        decision.communication, f"{decision.communication} communication"
+    )
+    kind = "hierarchical" if decision.hierarchical else "low-level (no sub-tasks)"
+    return (
+        f"learned: small CNNs and GCN ({perception}) over ground-truth segmentation, open3d "
+        f"semantic map; behaviour-cloned {kind} decision, {comm}"
+        + "".join(f", without {c}" for c in cut)
+    )
+
+
 def learned_team_class(config: str | Path) -> type[LearnedTeam]:
     """A team class named after an agent config's ``name`` (``eval --policy CONFIG.yaml``)."""
     from maniskill_tidy.training.decision_trainer import AgentConfig
 
     cfg = AgentConfig.load(resolve(config))
-    scheme = cfg.decision().communication
+    decision = cfg.decision()
+    scheme = decision.communication
     attrs = {"name": cfg.name, "config_file": resolve(config), "communication": scheme,
+             "perception": describe(cfg.perception, decision),
              "central": scheme == "central", "rounds": ROUNDS.get(scheme, 1),
              "team_override": cfg.team, "oracle": cfg.acting().oracle,
              "privileged": cfg.acting().oracle}  # fmt: skip
