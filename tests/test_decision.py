@@ -522,11 +522,12 @@ def test_a_config_refuses_a_subgoal_temperature_that_is_not_positive(tmp_path):
 
 
 def test_each_variants_runs_line_says_what_it_leaves_out():
-    from maniskill_tidy.policies.learned import learned_team_class
+    from maniskill_tidy.policies.learned import LearnedTeam, learned_team_class
 
     names = ("hangrcom", "wo_comm", "wo_hierdec", "wo_misobjdec", "wo_know")
     line = {name: learned_team_class(f"agents/{name}.yaml").perception for name in names}
     assert line["hangrcom"].endswith("hierarchical decision, HanGrCom")
+    assert LearnedTeam.perception == line["hangrcom"]  # `--policy hangrcom` is the same team
     assert line["wo_comm"].endswith("hierarchical decision, no communication")
     assert "low-level (no sub-tasks) decision" in line["wo_hierdec"]
     assert line["wo_misobjdec"].endswith("without misplaced-object detector")

@@ -298,6 +298,22 @@ class LearnedAgent(PerceivingAgent):
         return self._trace
 
 
+def describe(perception: str, decision: DecisionConfig) -> str:
+    """The runs table's line for a variant: its perception and what its decision leaves out."""
+    cut = [name for name, kept in (("misplaced-object detector", decision.misplaced_detector),
+                                   ("receptacle predictor", decision.receptacle_predictor))
+           if not kept]  # fmt: skip
+    comm = {"hangrcom": "HanGrCom", "none": "no communication"}.get(
+        decision.communication, f"{decision.communication} communication"
+    )
+    kind = "hierarchical" if decision.hierarchical else "low-level (no sub-tasks)"
+    return (
+        f"learned: small CNNs and GCN ({perception}) over ground-truth segmentation, open3d "
+        f"semantic map; behaviour-cloned {kind} decision, {comm}"
+        + "".join(f", without {c}" for c in cut)
+    )
+
+
 class LearnedTeam(Team):
     """A team of learned agents from an agent config (``agents/*.yaml``)."""
 
@@ -305,10 +321,7 @@ class LearnedTeam(Team):
     observations = "rgb+depth+segmentation"
     communication = "hangrcom"
     rounds = 3
-    perception: ClassVar[str] = (
-        "learned: small CNNs and GCN (agents/perception) over ground-truth segmentation, "
-        "open3d semantic map; behaviour-cloned HanGrCom decision"
-    )
+    perception: ClassVar[str] = describe("agents/perception/knowledge", DecisionConfig())
 
     config_file: ClassVar[Path] = DEFAULT_CONFIG
 
@@ -393,22 +406,6 @@ class LearnedTeam(Team):
     def make_central(self, public: PublicInfo, outbox: Outbox) -> CentralNode | None:
         model, _ = self.models(public.capabilities)
         return LearnedCentral(public, outbox, model.central) if model.central else None
-
-
-def describe(perception: str, decision: DecisionConfig) -> str:
-    """The runs table's line for a variant: its perception and what its decision leaves out."""
-    cut = [name for name, kept in (("misplaced-object detector", decision.misplaced_detector),
-                                   ("receptacle predictor", decision.receptacle_predictor))
-           if not kept]  # fmt: skip
-    comm = {"hangrcom": "HanGrCom", "none": "no communication"}.get(
-        decision.communication, f"{decision.communication} communication"
-    )
-    kind = "hierarchical" if decision.hierarchical else "low-level (no sub-tasks)"
-    return (
-        f"learned: small CNNs and GCN ({perception}) over ground-truth segmentation, open3d "
-        f"semantic map; behaviour-cloned {kind} decision, {comm}"
-        + "".join(f", without {c}" for c in cut)
-    )
 
 
 def learned_team_class(config: str | Path) -> type[LearnedTeam]:
