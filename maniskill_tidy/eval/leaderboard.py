@@ -281,6 +281,7 @@ def orderings_table(runs: dict[str, dict]) -> str:
 
 def plot(runs_by_setting: dict[str, dict[str, dict]], reference: dict, out: Path) -> Path:
     import matplotlib.pyplot as plt
+    from adjustText import adjust_text
 
     from maniskill_tidy.plotting import save_figure
 
@@ -288,6 +289,7 @@ def plot(runs_by_setting: dict[str, dict[str, dict]], reference: dict, out: Path
     fig, axes = plt.subplots(1, len(settings), figsize=(6 * len(settings), 4.2), squeeze=False)
     cols = reference["columns"]
     for ax, setting in zip(axes[0], settings, strict=True):
+        labels, xs, ys = [], [], []
         for policy, s in runs_by_setting.get(setting, {}).items():
             m = s["metrics"]["All"]
             lo, hi = (m.get("ci95") or {}).get("Success", (m["Success"], m["Success"]))
@@ -300,26 +302,17 @@ def plot(runs_by_setting: dict[str, dict[str, dict]], reference: dict, out: Path
                 capsize=3,
                 zorder=3,
             )
-            ax.annotate(
-                policy,
-                (m["ACm"], m["Success"]),
-                textcoords="offset points",
-                xytext=(5, 4),
-                fontsize=8,
-            )
+            labels.append(ax.text(m["ACm"], m["Success"], policy, fontsize=8))
+            xs.append(m["ACm"])
+            ys.append(m["Success"])
         for name, values in reference["rows"].get(setting, {}).items():
             acm, suc = values[cols.index("ACm All")], values[cols.index("Success All")]
             if acm is None:
                 continue
             ax.scatter(acm, suc, s=40, facecolors="none", edgecolors="grey", zorder=2)
-            ax.annotate(
-                f"{name} (paper)",
-                (acm, suc),
-                textcoords="offset points",
-                xytext=(5, -9),
-                fontsize=7,
-                color="grey",
-            )
+            labels.append(ax.text(acm, suc, f"{name} (paper)", fontsize=7, color="grey"))
+            xs.append(acm)
+            ys.append(suc)
         front = pareto_front(runs_by_setting.get(setting, {}))
         if len(front) > 1:
             ax.step([x for x, _ in front], [y for _, y in front], where="post", color="tab:red",
@@ -331,6 +324,11 @@ def plot(runs_by_setting: dict[str, dict[str, dict]], reference: dict, out: Path
             title=f"Setting {setting}: success against communication",
         )
         ax.grid(alpha=0.3)
+        # rows that sit close together (the paper's BroadComm. and CentralComm., the heuristics
+        # at ACm 0) would print their names over each other: move the labels apart, with an
+        # iteration budget rather than adjustText's default time budget so the plot reproduces
+        adjust_text(labels, x=xs, y=ys, ax=ax, iter_lim=300,
+                    arrowprops={"arrowstyle": "-", "color": "grey", "lw": 0.5})  # fmt: skip
     return save_figure(fig, out)
 
 
