@@ -93,6 +93,26 @@ def test_demos_resume_and_refuse_another_configuration(demos, small_dataset):
         build_demo_features(demos, str(small_dataset), replace(DEMOS, teacher="oracle"))
 
 
+def test_demos_hash_names_the_data_not_how_long_it_took(demos, tmp_path):
+    """Two builds of the same demonstrations differ only in each house's render time: they
+    must share a hash (the model cards quote it as the data's identity); other data must not."""
+    from maniskill_tidy.training.house_jobs import shards_digest
+
+    shard = next((demos / "setting_I" / "train").glob("house_*.npz"))
+    with np.load(shard) as z:
+        arrays = {name: z[name] for name in z.files}
+    assert "seconds" in arrays
+
+    def digest(folder: str, **change) -> str:
+        (tmp_path / folder).mkdir()
+        np.savez_compressed(tmp_path / folder / shard.name, **{**arrays, **change})
+        return shards_digest(tmp_path / folder, "house_*.npz")
+
+    same = digest("a")
+    assert digest("b", seconds=arrays["seconds"] + 100.0) == same
+    assert digest("c", t=arrays["t"] + 1) != same
+
+
 def test_a_camera_only_team_can_teach(small_dataset, tmp_path):
     """Demos from heuristic-none: its own labels, with exploration, line up with its actions."""
     cfg = replace(DEMOS, teacher="heuristic-none")
