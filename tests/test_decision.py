@@ -188,6 +188,26 @@ def test_behaviour_cloning_learns_is_seeded_and_resumes(rows, tmp_path):
                                                  strict=True))  # fmt: skip
 
 
+def test_a_rerun_that_trains_nothing_keeps_the_code_version_that_trained(
+    rows, tmp_path, monkeypatch
+):
+    """The model card names the code that trained the weights; a later no-op rerun (a queue
+    restarted, `make train-all`) must not relabel them."""
+    import maniskill_tidy.eval.runner as runner
+
+    train, _ = rows
+    s = TrainSettings(epochs=2, batch=1, lr=3e-3, seed=0, hard_fraction=0.5, patience=10)
+
+    def fit_at(version: str, epochs: int) -> dict:
+        monkeypatch.setattr(runner, "code_version", lambda: version)
+        model = TeamDecision(_cfg(), 3)
+        return fit(model, train, train, replace(s, epochs=epochs), tmp_path / "ckpt", False)
+
+    assert fit_at("trained", 2)["code_version"] == "trained"
+    assert fit_at("later", 2)["code_version"] == "trained"  # nothing left to train
+    assert fit_at("resumed", 3)["code_version"] == "resumed"  # it trained the last epoch
+
+
 def test_selection_by_accuracy_rewards_heads_above_the_majority_baseline():
     better = {
         "loss": 9.0,

@@ -469,6 +469,8 @@ def fit(
             state = saved["state"]
     bar = tqdm(total=s.epochs, initial=state["epoch"], desc="behaviour cloning", unit="epoch",
                disable=not progress)  # fmt: skip
+    from maniskill_tidy.eval.runner import code_version
+
     while state["epoch"] < s.epochs and state["epoch"] - state["best_epoch"] < s.patience:
         started = time.perf_counter()
         model.train()
@@ -486,6 +488,7 @@ def fit(
         val_metrics = evaluate(model, val, hard=True)
         state["epoch"] += 1
         state["seconds"] += time.perf_counter() - started
+        state["code_version"] = code_version()  # the card names the code that trained, not a rerun
         state["curve"].append({"epoch": state["epoch"], "train": total / -(-len(order) // s.batch),
                                "val": val_metrics["loss"]})  # fmt: skip
         score = selection_score(val_metrics, s.select)
@@ -616,7 +619,7 @@ def train_decision(config: Path, setting: str, progress: bool = True) -> dict:
         "curve": state["curve"],
         "val_inference_mode": evaluate(model, val, hard=True),
         "val_training_mode": evaluate(model, val, hard=False),
-        "code_version": code_version(),
+        "code_version": state.get("code_version", code_version()),
         "notes": cfg.notes.strip(),
         "act": asdict(cfg.acting()),
     }
