@@ -72,6 +72,30 @@ def test_evaluation_reads_the_messages_as_training_does(scheme):
         assert dims == [MESSAGE[scheme]] * N * (N - 1)
 
 
+def test_the_central_node_reads_teammates_sub_tasks_but_not_the_agents_own():
+    """Its own last sub-task is the teacher's label in training: reading it teaches copying."""
+    torch.manual_seed(0)
+    planner = TeamDecision(DecisionConfig(communication="central"), N).eval().central
+    x = _inputs(np.random.default_rng(2))
+    messengers = TeamDecision(DecisionConfig(communication="central"), N).agents
+    up = torch.stack([a.comm.outgoing(xn) for a, xn in zip(messengers, x, strict=True)], dim=2)
+    present = torch.ones(1, 1, N, dtype=torch.bool)
+    changed = up.clone()
+    changed[0, 0, 1, 6:10] = torch.tensor([0.0, 5.0, 7.0, 1.0])  # agent 1's last sub-task
+    with torch.no_grad():
+        before, after = planner(up, present), planner(changed, present)
+    assert torch.allclose(before[0, 0, 1], after[0, 0, 1])  # agent 1's own assignment
+    assert not torch.allclose(before[0, 0, 0], after[0, 0, 0])  # a teammate's
+    gone = present.clone()
+    gone[0, 0, 2] = False  # an absent agent gets nothing and is not read
+    with torch.no_grad():
+        out = planner(up, gone)
+        moved = up.clone()
+        moved[0, 0, 2] += 1.0
+        assert torch.all(out[0, 0, 2] == 0)
+        assert torch.allclose(out, planner(moved, gone))
+
+
 def types_public(names):
     from types import SimpleNamespace
 

@@ -17,9 +17,10 @@ only. What crosses between agents is a vector sent through the counting channel 
   predicts the sender's next sub-goal (dx, dy) with a learned head, trained on the sender's
   labels, and reads the message together with that intention.
 - ``central`` (CentralComm.): every agent uploads state and map embedding (410) to a central
-  node, which sends each agent an assignment (value dims) computed from all uploads; ``inn`` is
-  the assignment. The paper's node generates the sub-task itself; here the assignment is what
-  the agent's F_a turns into its sub-task, so that F_g reads ``se`` as in every variant.
+  node, which sends each agent an assignment (value dims) computed from all uploads (all but
+  the agent's own last sub-task: ``CentralPlanner``); ``inn`` is the assignment. The paper's
+  node generates the sub-task itself; here the assignment is what the agent's F_a turns into
+  its sub-task, so that F_g reads ``se`` as in every variant.
 
 The state message is the heuristic teams' (``policies/messages.py``) in the model's index
 spaces: capability (3), x and y in metres, heading in degrees, and the sub-task the agent
@@ -130,7 +131,13 @@ def pool(features: torch.Tensor, received: torch.Tensor) -> tuple[torch.Tensor, 
 
 class CentralPlanner(nn.Module):
     """CentralComm's node: from every agent's upload (state 10 + map 400) an assignment
-    (value dims) per agent, from its own upload and the team's pooled ones."""
+    (value dims) per agent, from its own upload and its teammates' pooled ones.
+
+    It does not read the sub-task in the agent's own upload. Under behaviour cloning that
+    field is the teacher's label of the last step, and a node that reads it learns to copy it
+    (96-98 % of val steps keep last step's sub-task: ``scripts/label_persistence.py``), then
+    fails on its own sub-tasks at test time. HanGrCom's agents likewise never read their own
+    last sub-task; the teammates' sub-tasks are read, as in every scheme."""
 
     def __init__(self, cfg) -> None:
         super().__init__()
@@ -138,13 +145,19 @@ class CentralPlanner(nn.Module):
         self.read = nn.Sequential(nn.Linear(64 + MAP, 128), nn.ReLU())
         self.assign = nn.Sequential(nn.Linear(3 * 128, cfg.value), nn.ReLU())
 
+    def _read(self, uploads: torch.Tensor) -> torch.Tensor:
+        return self.read(torch.cat([self.state_reader(uploads[..., :STATE]),
+                                    uploads[..., STATE:]], dim=-1))  # fmt: skip
+
     def forward(self, uploads: torch.Tensor, present: torch.Tensor) -> torch.Tensor:
         """uploads (…, N, STATE + MAP), present (…, N) -> assignments (…, N, value)."""
-        h = self.read(torch.cat([self.state_reader(uploads[..., :STATE]),
-                                 uploads[..., STATE:]], dim=-1))  # fmt: skip
-        mean, top = pool(h, present)
-        team = torch.cat([mean, top], dim=-1).unsqueeze(-2).expand(*h.shape[:-1], -1)
-        out = self.assign(torch.cat([h, team], dim=-1))
+        own = uploads.clone()
+        own[..., STATE - len(TASK) : STATE] = -1  # its own last sub-task: withheld
+        n = uploads.shape[-2]
+        h = self._read(uploads)
+        others = present.unsqueeze(-2) & ~torch.eye(n, dtype=torch.bool)  # (…, N, N): i <- j
+        mean, top = pool(h.unsqueeze(-3).expand(*h.shape[:-2], n, n, h.shape[-1]), others)
+        out = self.assign(torch.cat([self._read(own), mean, top], dim=-1))
         return out * present.unsqueeze(-1).to(out.dtype)
 
 
