@@ -375,6 +375,10 @@ def test_the_papers_orderings_are_checked_on_our_learned_rows():
     assert found["Ours <= CentralComm."][0] == "holds"  # equal Success
     assert found["Ours w/o Comm. < Ours"][0].startswith("fails")
     assert found["Ours w/o Know. < Ours"] == ("not run", "missing wo_know")
+    assert found["QMIX < Ours"] == ("not run", "missing qmix")
+    runs["qmix"] = _summary("qmix", [False] * 20, 512)
+    found = {claim: (verdict, evidence) for claim, verdict, evidence in orderings(runs)}
+    assert found["QMIX < Ours"][0] == "holds" and found["QMIX < Ours"][1].startswith("qmix 0.000")
     ces_claim = "Ours has the best CES among the partial-communication methods"
     assert found[ces_claim] == ("not run", "missing intencomm")
     runs["intencomm"] = _summary("intencomm", [True, False, False, False] * 5, 20)

@@ -29,6 +29,7 @@ ORDER = (
     "sa-learned",
     "sa-oracle",
     "random",
+    "qmix",
     "heuristic-none",
     "heuristic-detection",
     "heuristic-broadcast",
@@ -58,6 +59,7 @@ PAPER_ROW = {
     "hangrcom": "Ours",
     "sa-learned": "SA",
     "sa-oracle": "SA(Oracle)",
+    "qmix": "QMIX",
     "condcomm": "CondComm.",
     "cmprcomm": "CmprComm.",
     "intencomm": "IntenComm.",
@@ -251,6 +253,7 @@ def orderings(runs: dict[str, dict]) -> list[tuple[str, str, str]]:
     out = [
         ("SA < Ours", *_less(runs, "sa-learned", "hangrcom", strict=True)),
         ("Ours <= CentralComm.", *_less(runs, "hangrcom", "centralcomm", strict=False)),
+        ("QMIX < Ours", *_less(runs, "qmix", "hangrcom", strict=True)),
     ]
     missing = [p for p in (*PARTIAL_COMMUNICATION, "sa-learned") if p not in runs]
     claim = "Ours has the best CES among the partial-communication methods"
