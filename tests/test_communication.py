@@ -75,10 +75,10 @@ def test_evaluation_reads_the_messages_as_training_does(scheme):
 def test_the_central_node_reads_teammates_sub_tasks_but_not_the_agents_own():
     """Its own last sub-task is the teacher's label in training: reading it teaches copying."""
     torch.manual_seed(0)
-    planner = TeamDecision(DecisionConfig(communication="central"), N).eval().central
+    model = TeamDecision(DecisionConfig(communication="central"), N).eval()
+    planner = model.central
     x = _inputs(np.random.default_rng(2))
-    messengers = TeamDecision(DecisionConfig(communication="central"), N).agents
-    up = torch.stack([a.comm.outgoing(xn) for a, xn in zip(messengers, x, strict=True)], dim=2)
+    up = torch.stack([a.comm.outgoing(xn) for a, xn in zip(model.agents, x, strict=True)], dim=2)
     present = torch.ones(1, 1, N, dtype=torch.bool)
     changed = up.clone()
     changed[0, 0, 1, 6:10] = torch.tensor([0.0, 5.0, 7.0, 1.0])  # agent 1's last sub-task
