@@ -157,6 +157,12 @@ def _compare(args: argparse.Namespace) -> int:
         lo, hi = r["ci95"]
         print(f"{m:>8} {r['difference']:>+8.3f} {f'[{lo:+.3f}, {hi:+.3f}]':>20} "
               f"{r['better']:>9} {r['worse']:>8}")  # fmt: skip
+    print(f"{'run':>8} {'placed':>14} {'failed actions per episode':>27}")
+    for side in ("A", "B"):
+        t = d["totals"][side]
+        placed = f"{t['placed']} / {t['misplaced']}"
+        failed = f"{t['failed_per_episode']:.1f} of {t['agent_steps_per_episode']:.0f}"
+        print(f"{side:>8} {placed:>14} {failed:>27}")
     return 0
 
 

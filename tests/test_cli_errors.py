@@ -175,3 +175,19 @@ def test_compare_refuses_a_folder_without_episodes_and_runs_with_nothing_in_comm
         record = json.dumps({**line, "episode": f"only-{name}"})
         (tmp_path / name / "episodes.jsonl").write_text(record + "\n")
     one_line_error(cli("compare", str(tmp_path / "a"), str(tmp_path / "b")), "no episode in common")
+
+
+def test_compare_prints_objects_placed_and_failed_actions_of_both_runs(tmp_path):
+    line = {"task_kind": "Single", "k": 2, "success": False, "reasonable": 1, "found": 1,
+            "length": 10, "comm": 0, "agents": 3, "seed": 0}  # fmt: skip
+    for name, placed, failed in (("a", (2, 1), (4, 6)), ("b", (0, 1), (0, 1))):
+        (tmp_path / name).mkdir()
+        pairs = enumerate(zip(placed, failed, strict=True))
+        rows = [{**line, "episode": f"e{i}", "reasonable": p, "success": p == 2,
+                 "failed_actions": f} for i, (p, f) in pairs]  # fmt: skip
+        (tmp_path / name / "episodes.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+    p = cli("compare", str(tmp_path / "a"), str(tmp_path / "b"))
+    assert p.returncode == 0, p.stderr
+    totals = {ln.split()[0]: ln.split()[1:] for ln in p.stdout.splitlines()[-2:]}
+    assert totals["A"] == ["3", "/", "4", "5.0", "of", "30"]
+    assert totals["B"] == ["1", "/", "4", "0.5", "of", "30"]

@@ -68,10 +68,16 @@ def test_paired_differences_use_only_the_episodes_both_runs_played():
     from maniskill_tidy.eval.metrics import paired_difference
 
     b = [replace(rec("Single", 4, 1, 2, 300, 0), episode=f"e{i}") for i in range(6)]
-    a = [replace(r, reasonable=3, found=4) if i < 2 else r for i, r in enumerate(b)]
-    a.append(replace(b[0], episode="only-in-a", reasonable=4, success=True))
+    a = [replace(r, reasonable=3, found=4, failed_actions=i) if i < 2 else r
+         for i, r in enumerate(b)]  # fmt: skip
+    a.append(replace(b[0], episode="only-in-a", reasonable=4, success=True, failed_actions=50))
     d = paired_difference(a, b)
     assert d["episodes"] == 6
+    # totals count only the shared episodes: "only-in-a" adds neither its 4 objects nor 50 fails
+    totals_a = {"placed": 2 * 3 + 4 * 1, "misplaced": 24, "failed_per_episode": 1 / 6,
+                "agent_steps_per_episode": 900}  # fmt: skip
+    assert d["totals"]["A"] == totals_a
+    assert d["totals"]["B"]["placed"] == 6 and d["totals"]["B"]["failed_per_episode"] == 0
     assert d["%PS"]["difference"] == pytest.approx(2 * (3 - 1) / 4 / 6)
     assert (d["%PS"]["better"], d["%PS"]["worse"]) == (2, 0)
     assert d["%FM"]["difference"] == pytest.approx(2 * (4 - 2) / 4 / 6)

@@ -91,6 +91,18 @@ def summarize(records: list[EpisodeRecord]) -> dict[str, dict]:
     }
 
 
+def run_totals(records: list[EpisodeRecord]) -> dict:
+    """Counts the metrics average away: objects placed reasonably in all the episodes, and
+    failed actions per episode (the actions the env refused, over every agent)."""
+    n = max(len(records), 1)
+    return {
+        "placed": sum(r.reasonable for r in records),
+        "misplaced": sum(r.k for r in records),
+        "failed_per_episode": sum(r.failed_actions for r in records) / n,
+        "agent_steps_per_episode": sum(r.length * r.agents for r in records) / n,
+    }
+
+
 def paired_difference(a: list[EpisodeRecord], b: list[EpisodeRecord]) -> dict:
     """Per metric, the mean of A - B over the episodes both runs played, with a 95 % interval
     from resampling those episodes (the pair kept together) and how many episodes A did better
@@ -104,6 +116,9 @@ def paired_difference(a: list[EpisodeRecord], b: list[EpisodeRecord]) -> dict:
     va = per_episode([mine[e] for e in shared])
     vb = per_episode([by_id[e] for e in shared])
     out: dict = {"episodes": len(shared)}
+    out["totals"] = {
+        side: run_totals([run[e] for e in shared]) for side, run in (("A", mine), ("B", by_id))
+    }
     for m in METRICS:
         d = va[m] - vb[m]
         out[m] = {"difference": float(d.mean()), "ci95": bootstrap_ci(d),
