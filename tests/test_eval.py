@@ -362,6 +362,9 @@ def test_ablations_get_their_own_table_and_learned_rows_their_own_sa(tmp_path):
     ours = next(line for line in methods.splitlines() if line.startswith("| **hangrcom** |"))
     assert ours.split("|")[-2].strip() == f"{ces(0.5, 0.1, 240.0):.1f}"  # against sa-learned
     assert pareto_front(runs) == [(0.0, 0.25), (240.0, 0.5)]
+    without_wo_comm = {k: v for k, v in runs.items() if k != "wo_comm"}
+    assert pareto_front(without_wo_comm) == [(0.0, 0.25), (240.0, 0.5)]  # the scripted sa
+    assert pareto_front(without_wo_comm, learned_only=True) == [(0.0, 0.1), (240.0, 0.5)]
 
 
 def test_the_papers_orderings_are_checked_on_our_learned_rows():

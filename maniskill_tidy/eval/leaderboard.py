@@ -6,7 +6,8 @@ come from ``eval/results/setting_*/<policy>/summary.json``; the paper's own figu
 AI2-THOR/ProcTHOR with learned models, so not directly comparable) follow as reference rows.
 CES needs the single-agent baseline's success in the same setting and split: our learned SA
 (``sa-learned``) for our learned rows, our heuristic ``sa`` for the heuristic rows, the paper's
-SA row for the paper's. A plot puts Success against ACm, with the Pareto front of our rows.
+SA row for the paper's. A plot puts Success against ACm, with the Pareto fronts of our rows
+and of our learned rows alone.
 Our Success cells carry their 95 % bootstrap interval; a run whose episodes were played by more
 than one code version is flagged. Runs of the paper's full protocol (``eval ... --episodes all
 --out eval/all``: every start, 1000 episodes) get a table of their own under each setting, so a
@@ -204,13 +205,15 @@ def details(runs: dict[str, dict]) -> str:
     return "\n".join(lines)
 
 
-def pareto_front(runs: dict[str, dict]) -> list[tuple[float, float]]:
+def pareto_front(runs: dict[str, dict], learned_only: bool = False) -> list[tuple[float, float]]:
     """(ACm, Success) of the runs no other run beats on both (less ACm, more Success), by
-    increasing ACm. Privileged runs are left out: they do not communicate to know."""
+    increasing ACm. Privileged runs are left out: they do not communicate to know. With
+    ``learned_only`` the scripted teams are left out too, so that the paper's methods, which
+    sit far below the scripted teams here, get a front of their own."""
     points = sorted(
         (s["metrics"]["All"]["ACm"] or 0.0, s["metrics"]["All"]["Success"] or 0.0)
         for s in runs.values()
-        if not s.get("privileged")
+        if not s.get("privileged") and (learned(s) or not learned_only)
     )
     front: list[tuple[float, float]] = []
     for acm, success in points:
@@ -316,10 +319,15 @@ def plot(runs_by_setting: dict[str, dict[str, dict]], reference: dict, out: Path
             labels.append(ax.text(acm, suc, f"{name} (paper)", fontsize=7, color="grey"))
             xs.append(acm)
             ys.append(suc)
-        front = pareto_front(runs_by_setting.get(setting, {}))
-        if len(front) > 1:
-            ax.step([x for x, _ in front], [y for _, y in front], where="post", color="tab:red",
-                    alpha=0.6, zorder=1, label="Pareto front (ours)")  # fmt: skip
+        fronts = (("Pareto front (ours)", False, "tab:red"),
+                  ("Pareto front (our learned rows)", True, "tab:blue"))  # fmt: skip
+        for label, learned_only, color in fronts:
+            front = pareto_front(runs_by_setting.get(setting, {}), learned_only)
+            if len(front) > 1:
+                style = {"color": color, "ls": "--" if learned_only else "-", "label": label}
+                ax.step([x for x, _ in front], [y for _, y in front], where="post", alpha=0.6,
+                        zorder=1, **style)  # fmt: skip
+        if ax.get_legend_handles_labels()[0]:
             ax.legend(loc="upper right", fontsize=8)
         ax.set(
             xlabel="ACm: values received per agent per step",
