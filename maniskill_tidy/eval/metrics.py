@@ -113,12 +113,9 @@ def paired_difference(a: list[EpisodeRecord], b: list[EpisodeRecord]) -> dict:
     if not shared:
         raise ValueError("the two runs have no episode in common; expected runs of one split")
     mine = {r.episode: r for r in a}
-    va = per_episode([mine[e] for e in shared])
-    vb = per_episode([by_id[e] for e in shared])
-    out: dict = {"episodes": len(shared)}
-    out["totals"] = {
-        side: run_totals([run[e] for e in shared]) for side, run in (("A", mine), ("B", by_id))
-    }
+    ra, rb = [mine[e] for e in shared], [by_id[e] for e in shared]
+    va, vb = per_episode(ra), per_episode(rb)
+    out: dict = {"episodes": len(shared), "totals": {"A": run_totals(ra), "B": run_totals(rb)}}
     for m in METRICS:
         d = va[m] - vb[m]
         out[m] = {"difference": float(d.mean()), "ci95": bootstrap_ci(d),
