@@ -474,6 +474,29 @@ def test_the_oracle_variant_alone_is_given_the_misplaced_objects_and_fetches_one
     assert record.found >= 1
 
 
+def test_the_oracle_goes_for_the_next_object_once_it_holds_the_one_it_walked_to(tmp_path):
+    """Regression: picking up the object it was walking to drops it from the targets; once
+    that object is put down, the oracle walks to the next target instead of failing on the
+    stale one (KeyError in the SA(Oracle) test run, episode 6 here)."""
+    from maniskill_tidy.eval.episode import play_episode
+    from maniskill_tidy.eval.runner import RunConfig, make_env
+    from maniskill_tidy.policies.learned import learned_team_class
+
+    config = tmp_path / "oracle.yaml"
+    config.write_text(
+        f"base: {Path('agents/hangrcom.yaml').resolve()}\n"
+        "name: oracle-test\nact: {oracle: true}\n"
+    )
+    env = make_env(RunConfig("hangrcom", "I", "test", None, 1))
+    try:
+        env.reset(seed=0, options={"episode": 6})
+        env.unwrapped.max_steps = 140
+        record = play_episode(env, learned_team_class(config)(), 6, 0, [])
+    finally:
+        env.close()
+    assert record.found >= 2
+
+
 # ---------------------------------------------------------------------------------- DAgger
 class Played:
     """What the playing team sent to the env, step by step."""

@@ -220,6 +220,8 @@ class LearnedAgent(PerceivingAgent):
             return None
         here = np.asarray(self.public.house.navgrid.center(*s.cell))
         while self.targets:
+            if self.fetching is not None and self.fetching[0] not in self.targets:
+                self.fetching = None  # picked up (observe drops it from the targets)
             if self.fetching is None:
                 oid = min(self.targets, key=lambda o: np.hypot(*(self.targets[o][:2] - here)))
                 height = robot_kind(self.capability).camera_height
