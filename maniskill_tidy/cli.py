@@ -2,7 +2,8 @@
 
 Every error caused by what the user asked for (a bad argument, a missing, damaged or tampered
 dataset, a bad recording or house file) is one line on stderr naming the problem and what was
-expected, with exit status 2; nothing is half-written.
+expected, with exit status 2; nothing is half-written. Anything else raised inside a job (an
+episode, a house, a shard) is a bug: its traceback, then one line naming the job, exit status 1.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import json
 import re
 import sys
 import time
+import traceback
 from pathlib import Path
 
 from maniskill_tidy.knowledge import load_catalog, load_placement
@@ -720,8 +722,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     from maniskill_tidy.houses.procthor import ProcTHORImportError
-    from maniskill_tidy.parallel import WorkerLostError
+    from maniskill_tidy.parallel import JobError, WorkerLostError
     from maniskill_tidy.tasks.dataset import DatasetError
+
+    bad_input = (DatasetError, ProcTHORImportError, ValueError, KeyError, OSError)
 
     args = build_parser().parse_args(argv)
     try:
@@ -730,7 +734,15 @@ def main(argv: list[str] | None = None) -> int:
 
             check_ray(args.ray)
         return args.func(args)
-    except (DatasetError, ProcTHORImportError, ValueError, KeyError, OSError) as err:
+    except JobError as err:
+        if isinstance(err.cause, (DatasetError, ProcTHORImportError)):  # a worker read bad input
+            print(f"maniskill-tidy {args.command}: {err.cause}", file=sys.stderr)
+            return 2
+        # anything else raised inside a job is a bug, not bad input: show where, status 1
+        traceback.print_exception(err.cause, file=sys.stderr)
+        print(f"maniskill-tidy {args.command}: {err} (traceback above)", file=sys.stderr)
+        return 1
+    except bad_input as err:
         message = err.args[0] if isinstance(err, KeyError) and err.args else err
         print(f"maniskill-tidy {args.command}: {message}", file=sys.stderr)
         return 2

@@ -8,9 +8,10 @@ many jobs; results stream back as they finish, so callers append them to their r
 With ``ray`` a worker is a Ray actor, on a local Ray instance (``ray="local"``, ``workers``
 CPUs) or on a running cluster (``ray="ADDRESS"``, ``workers`` actors). An actor that dies (its
 process killed, its node lost) is replaced and its job run again on the new one; a job that kills
-:data:`MAX_ATTEMPTS` actors in a row stops the run with its name. Ray hides GPUs from actors that
-do not ask for one (it sets ``CUDA_VISIBLE_DEVICES`` to empty), so on a cluster with GPUs each
-actor asks for a share of one and SAPIEN can render through CUDA there.
+:data:`MAX_ATTEMPTS` actors in a row stops the run with its name. A job that raises stops the run
+with a :class:`JobError` naming it, its cause (with the worker's traceback) chained. Ray hides
+GPUs from actors that do not ask for one (it sets ``CUDA_VISIBLE_DEVICES`` to empty), so on a
+cluster with GPUs each actor asks for a share of one and SAPIEN can render through CUDA there.
 """
 
 from __future__ import annotations
@@ -26,6 +27,15 @@ MAX_ATTEMPTS = 3  # actors one job may lose before the run stops
 
 class WorkerLostError(RuntimeError):
     """A job killed :data:`MAX_ATTEMPTS` workers: the job, not the cluster, is at fault."""
+
+
+class JobError(RuntimeError):
+    """A job raised ``cause``: the run stops, naming the job (what finished is kept)."""
+
+    def __init__(self, job: Any, cause: BaseException) -> None:
+        super().__init__(f"job {job!r} failed: {type(cause).__name__}: {cause}")
+        self.job = job
+        self.cause = cause
 
 
 LOCAL = "local"  # --ray without an address: start a Ray instance on this machine
@@ -70,7 +80,11 @@ def run_jobs(
         close = init(*initargs) if init is not None else None
         try:
             for job in jobs:
-                yield job, work(job)
+                try:
+                    result = work(job)
+                except Exception as e:
+                    raise JobError(job, e) from e
+                yield job, result
         finally:
             if callable(close):
                 close()
@@ -86,8 +100,15 @@ def run_jobs(
         ) as pool:
             futures = {pool.submit(work, job): job for job in jobs}
             done = futures if ordered else as_completed(futures)
-            for fut in done:
-                yield futures[fut], fut.result()
+            try:
+                for fut in done:
+                    try:
+                        result = fut.result()
+                    except Exception as e:  # the worker's traceback is chained to e
+                        raise JobError(futures[fut], e) from e
+                    yield futures[fut], result
+            finally:  # a failed or abandoned run leaves no queued job to run on
+                pool.shutdown(wait=True, cancel_futures=True)
 
 
 # ---------------------------------------------------------------------- Ray
@@ -171,7 +192,7 @@ def _probe(address: str, timeout: float = 5.0) -> None:
 
 def _ray_jobs(jobs, work, workers, init, initargs, address, ordered):
     import ray
-    from ray.exceptions import RayActorError
+    from ray.exceptions import RayActorError, RayTaskError
 
     started = start_ray(address, workers)
     try:
@@ -214,6 +235,8 @@ def _ray_jobs(jobs, work, workers, init, initargs, address, ordered):
                 ray.kill(actor)
                 submit(new_actor())
                 continue
+            except RayTaskError as e:
+                raise JobError(jobs[i], e.cause) from e
             submit(actor)
             if not ordered:
                 yield jobs[i], result

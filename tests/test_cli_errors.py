@@ -152,6 +152,46 @@ def test_a_job_that_kills_its_workers_ends_the_command_in_one_line_with_status_1
     assert lines == ["maniskill-tidy generate: job 'h007' lost 3 Ray workers in a row; stopping"]
 
 
+def test_a_bug_inside_a_job_ends_the_command_with_its_traceback_and_status_1(
+    tmp_path, monkeypatch, capsys
+):
+    """A stale-id KeyError inside an episode once came out as "maniskill-tidy eval: Statue_0",
+    exit 2: a bug reported as bad input, with nothing to say where."""
+    from maniskill_tidy import cli as cli_module
+    from maniskill_tidy.tasks import dataset
+
+    def stale_id(args):
+        return {"CD_1": 1}["Statue_0"]
+
+    monkeypatch.setattr(dataset, "_make_shard", stale_id)
+    status = cli_module.main(["generate", "--houses", "2", "--out", str(tmp_path / "ds")])
+    err = capsys.readouterr().err.strip()
+    assert status == 1
+    assert "Traceback" in err and "in stale_id" in err
+    last = err.splitlines()[-1]
+    assert last.startswith("maniskill-tidy generate: job (0, 'train', 0, ")
+    assert last.endswith("failed: KeyError: 'Statue_0' (traceback above)")
+
+
+def test_bad_input_found_inside_a_job_is_still_one_line_with_status_2(
+    tmp_path, monkeypatch, capsys
+):
+    from maniskill_tidy import cli as cli_module
+    from maniskill_tidy.tasks import dataset
+
+    def damaged(args):
+        raise dataset.DatasetError("shard-0000.json.gz: damaged; expected gzip JSON")
+
+    monkeypatch.setattr(dataset, "_make_shard", damaged)
+    status = cli_module.main(["generate", "--houses", "2", "--out", str(tmp_path / "ds")])
+    err = capsys.readouterr().err.strip()
+    assert status == 2
+    assert "Traceback" not in err  # above the line: only the progress bar, closed
+    assert err.splitlines()[-1] == (
+        "maniskill-tidy generate: shard-0000.json.gz: damaged; expected gzip JSON"
+    )
+
+
 def test_training_an_agent_config_refuses_the_perception_options_instead_of_ignoring_them(
     tmp_path,
 ):

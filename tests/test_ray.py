@@ -158,6 +158,17 @@ def test_a_job_that_kills_every_worker_stops_the_run_with_its_name(local_ray):
         list(run_jobs(range(3), always_die, 2, ray=local_ray))
 
 
+def test_a_job_that_raises_on_an_actor_stops_the_run_with_its_name_and_cause(local_ray):
+    from maniskill_tidy.parallel import JobError
+
+    def stale_id(x: int) -> int:
+        return {0: 0}[x]
+
+    with pytest.raises(JobError, match="job 2 failed: KeyError: 2") as info:
+        list(run_jobs([0, 2], stale_id, 2, ray=local_ray, ordered=True))
+    assert isinstance(info.value.cause, KeyError)
+
+
 def test_ray_refuses_an_address_where_nothing_answers(tmp_path):
     out = tmp_path / "out"
     p = cli("eval", "--policy", "random", "--episodes", "1", "--ray", "127.0.0.1:1",

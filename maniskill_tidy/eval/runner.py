@@ -308,16 +308,16 @@ def evaluate(
                 bar.update(1)
                 bar.set_postfix(success=f"{np.mean([x.success for x in records]):.3f}")
 
-            for _, record_ in run_jobs(
-                todo,
-                _work,
-                workers,
-                init=_init_worker,
-                initargs=(cfg, images, record, str(out)),
-                ray=ray,
-            ):
-                keep(record_)
-        bar.close()
+            with bar:  # closed on an error too, so the error starts a line of its own
+                for _, record_ in run_jobs(
+                    todo,
+                    _work,
+                    workers,
+                    init=_init_worker,
+                    initargs=(cfg, images, record, str(out)),
+                    ray=ray,
+                ):
+                    keep(record_)
         elapsed = time.perf_counter() - started
         if todo:  # wall time and code versions accumulate over the sessions that ran episodes
             run_info["wall_seconds"] = round(run_info["wall_seconds"] + elapsed, 1)

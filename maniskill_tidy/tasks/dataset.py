@@ -147,10 +147,10 @@ def generate_dataset(
         initial=n_houses - sum(a[3] - a[2] for _, a in todo),
     )
     names = {a: name for name, a in todo}
-    for a, result in run_jobs([a for _, a in todo], _make_shard, workers, ray=ray):
-        write_atomic(out / names[a], result[3])
-        bar.update(result[1])
-    bar.close()
+    with bar:  # closed on an error too, so the error starts a line of its own
+        for a, result in run_jobs([a for _, a in todo], _make_shard, workers, ray=ray):
+            write_atomic(out / names[a], result[3])
+            bar.update(result[1])
     return write_manifest(out, params, [name for name, _ in jobs])
 
 

@@ -73,10 +73,10 @@ def _tasks(job: tuple[int, int, dict, list[int]]) -> tuple[int, list[dict] | Non
 def _map(fn, jobs: list, workers: int, desc: str, progress: bool, ray: str | None) -> list:
     bar = tqdm(total=len(jobs), unit="house", desc=desc, disable=not progress)
     out = []
-    for _, result in run_jobs(jobs, fn, workers, ray=ray, ordered=True):
-        out.append(result)
-        bar.update()
-    bar.close()
+    with bar:  # closed on an error too, so the error starts a line of its own
+        for _, result in run_jobs(jobs, fn, workers, ray=ray, ordered=True):
+            out.append(result)
+            bar.update()
     return out
 
 

@@ -46,10 +46,11 @@ def run_house_jobs(
     ``init``; see :mod:`maniskill_tidy.parallel`) and write the ``(path, bytes)`` it returns
     atomically, here; returns the wall time in seconds."""
     started = time.perf_counter()
-    for _, (shard, data) in run_jobs(jobs, work, workers, init=init, initargs=initargs, ray=ray):
-        write_atomic(Path(shard), data)
-        bar.update(1)
-    bar.close()
+    with bar:  # closed on an error too, so the error starts a line of its own
+        jobs_done = run_jobs(jobs, work, workers, init=init, initargs=initargs, ray=ray)
+        for _, (shard, data) in jobs_done:
+            write_atomic(Path(shard), data)
+            bar.update(1)
     return time.perf_counter() - started if jobs else 0.0
 
 

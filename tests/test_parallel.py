@@ -1,0 +1,48 @@
+"""A job that raises stops the run, names the job and keeps the worker's traceback."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import pytest
+
+from maniskill_tidy.parallel import JobError, run_jobs
+
+
+def lookup_or_fail(job: tuple[str, int]) -> int:
+    """Job ``(folder, n)``: job 0 fails as a stale-id bug would; the others take a while."""
+    folder, n = job
+    if n == 0:
+        return {"CD_1": 1}["CD_2"]
+    time.sleep(0.3)
+    (Path(folder) / f"{n}.done").touch()
+    return n
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_job_that_raises_stops_the_run_with_its_name_and_cause(tmp_path, workers):
+    jobs = [(str(tmp_path), n) for n in range(1, 4)] + [(str(tmp_path), 0)]
+    with pytest.raises(JobError) as info:
+        list(run_jobs(jobs, lookup_or_fail, workers, ordered=True))
+    assert info.value.job == (str(tmp_path), 0)
+    assert isinstance(info.value.cause, KeyError)
+    assert str(info.value) == f"job {(str(tmp_path), 0)!r} failed: KeyError: 'CD_2'"
+
+
+def test_a_failed_job_in_a_pool_cancels_the_jobs_still_queued(tmp_path):
+    """The pool used to run every queued episode before the error came out."""
+    jobs = [(str(tmp_path), n) for n in range(40)]
+    with pytest.raises(JobError):
+        list(run_jobs(jobs, lookup_or_fail, 2))
+    time.sleep(0.5)
+    assert len(list(tmp_path.glob("*.done"))) < 10
+
+
+def test_the_workers_traceback_comes_with_the_error(tmp_path):
+    import traceback
+
+    with pytest.raises(JobError) as info:
+        list(run_jobs([(str(tmp_path), 0)] * 2, lookup_or_fail, 2))
+    text = "".join(traceback.format_exception(info.value.cause))
+    assert "lookup_or_fail" in text and '{"CD_1": 1}["CD_2"]' in text
