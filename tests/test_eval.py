@@ -167,6 +167,8 @@ def test_runner_resumes_after_a_kill_with_the_same_totals(tmp_path):
     proc.wait()
     partial = jsonl.read_text().count("\n")
     assert 1 <= partial < 3
+    run = json.loads((jsonl.parent / "run.json").read_text())  # the killed session's share kept
+    assert run["wall_seconds"] > 0 and run["code_versions"]
     again = subprocess.run(_eval(tmp_path / "cut"), capture_output=True, text=True, timeout=600)
     assert again.returncode == 0, again.stderr
     lines = [json.loads(x) for x in jsonl.read_text().splitlines()]

@@ -301,6 +301,11 @@ def evaluate(
         with open(jsonl, "a") as sink:
 
             def keep(r: EpisodeRecord) -> None:
+                # wall time and code versions accumulate over the sessions that ran episodes,
+                # kept before each episode's line: a killed session's share is not lost
+                run_info["wall_seconds"] = round(wall + time.perf_counter() - started, 1)
+                run_info["code_versions"] = list(dict.fromkeys([*versions, version]))
+                write_atomic(config_path, json.dumps(run_info, indent=1, sort_keys=True).encode())
                 sink.write(json.dumps(r.to_dict(), sort_keys=True) + "\n")
                 sink.flush()
                 os.fsync(sink.fileno())
@@ -318,12 +323,7 @@ def evaluate(
                     ray=ray,
                 ):
                     keep(record_)
-        elapsed = time.perf_counter() - started
-        if todo:  # wall time and code versions accumulate over the sessions that ran episodes
-            run_info["wall_seconds"] = round(run_info["wall_seconds"] + elapsed, 1)
-            versions = list(dict.fromkeys([*versions, version]))
-            run_info["code_versions"] = versions
-            write_atomic(config_path, json.dumps(run_info, indent=1, sort_keys=True).encode())
+        versions = run_info["code_versions"]
         if record == "failures":
             _record_failures(cfg, records, ids, out)
 
