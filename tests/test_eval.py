@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from maniskill_tidy.eval.leaderboard import paper_reference, write_leaderboard
+from maniskill_tidy.eval.leaderboard import misprints, paper_reference, table, write_leaderboard
 from maniskill_tidy.eval.metrics import EpisodeRecord, ces, summarize
 from maniskill_tidy.eval.paper_tables import extract
 from maniskill_tidy.eval.runner import (
@@ -270,6 +270,30 @@ def _summary(policy: str, success: list[bool], acm_values: int, **extra) -> dict
         "metrics": summarize(records),
         "episode_seconds_mean": 1.0,
     }
+
+
+def test_paper_figures_whose_all_lies_outside_single_and_cross_are_flagged():
+    """All averages the Single and Cross episodes; the paper's Table 6 prints two rows where it
+    cannot (w/o Know. %PS All 0.010, w/o HierDec. %PS Cross 0.99)."""
+    row = [0.10, 0.20, 0.151, 0.1, 0.2, 0.25, 0.5, 0.6, 0.55, 200.0, 250.0, 250.1,
+           300.0, 400.0, 350.0, 2.0, 1.0, 3.0]  # fmt: skip
+    assert misprints(row) == ["%PS"]  # rounding slack kept, CES (a ratio) not checked
+    reference = paper_reference()
+    flagged = {
+        (kind, setting, name): misprints(values)
+        for kind in ("rows", "ablations")
+        for setting, rows in reference[kind].items()
+        for name, values in rows.items()
+        if misprints(values)
+    }
+    assert flagged == {
+        ("ablations", "II", "Ours w/o Know."): ["%PS"],
+        ("ablations", "II", "Ours w/o HierDec."): ["%PS"],
+    }
+    md = table("II", {}, reference, "ablations")
+    know = next(x for x in md.splitlines() if x.startswith("| Ours w/o Know."))
+    assert know.split(" | ")[6] == "0.010 §"
+    assert "§ Ours w/o Know. (paper): %PS Single 0.103, Cross 0.096, All 0.01" in md
 
 
 def test_leaderboard_assembles_ces_intervals_and_notes(tmp_path):

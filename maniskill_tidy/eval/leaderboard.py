@@ -170,19 +170,46 @@ def table(setting: str, runs: dict[str, dict], reference: dict, kind: str = "row
         row = _our_row(s, sa_baseline(s, runs))
         lines.append(f"| **{policy}**{tag} | " + " | ".join(row) + " |")
         if policy in PAPER_ROW and PAPER_ROW[policy] in reference.get(kind, {}).get(setting, {}):
-            lines.append(_paper_row(PAPER_ROW[policy], reference, setting, kind))
+            lines.append(_paper_row(PAPER_ROW[policy], reference, setting, kind, notes))
     paired = {PAPER_ROW[p] for p in mine if p in PAPER_ROW}
     for name in reference.get(kind, {}).get(setting, {}):
         if name not in paired:
-            lines.append(_paper_row(name, reference, setting, kind))
+            lines.append(_paper_row(name, reference, setting, kind, notes))
     if notes:
         lines += [""] + [f"{n}  " for n in notes]
     return "\n".join(lines)
 
 
-def _paper_row(name: str, reference: dict, setting: str, kind: str = "rows") -> str:
+def misprints(values: list[float | None]) -> list[str]:
+    """The columns of a paper row whose All lies outside its Single and Cross: All averages
+    over the Single and Cross episodes, so one of the three printed figures is wrong."""
+    out = []
+    for i, column in enumerate(COLUMNS):
+        if column == "CES":  # a ratio of Success gains: not an average over episodes
+            continue
+        single, cross, both = values[3 * i : 3 * i + 3]
+        if None in (single, cross, both):
+            continue
+        slack = 0.2 if column in ("#PL", "ACm") else 0.002  # the printed rounding
+        if not min(single, cross) - slack <= both <= max(single, cross) + slack:
+            out.append(column)
+    return out
+
+
+def _paper_row(
+    name: str, reference: dict, setting: str, kind: str = "rows", notes: list | None = None
+) -> str:
     values = reference[kind][setting][name]
     cells = [_fmt(v, COLUMNS[i // 3]) for i, v in enumerate(values)]
+    for column in misprints(values):
+        i = 3 * COLUMNS.index(column)
+        cells[i + 2] += " §"
+        if notes is not None:
+            notes.append(
+                f"§ {name} (paper): {column} Single {values[i]}, Cross {values[i + 1]}, All "
+                f"{values[i + 2]}, as printed; All averages the Single and Cross episodes, so "
+                "one of the three is a misprint."
+            )
     return f"| {name} *(paper)* | " + " | ".join(cells) + " |"
 
 
