@@ -311,18 +311,33 @@ def _export(args: argparse.Namespace) -> int:
 
 
 def _check_render(args: argparse.Namespace) -> int:
-    from maniskill_tidy.envs.backend_check import compare_backends
+    from maniskill_tidy.envs import backend_check as bc
 
     if args.episodes < 1:
         raise ValueError(f"--episodes must be at least 1, got {args.episodes}")
-    backends = tuple(b.strip() for b in args.backends.split(","))
-    r = compare_backends(backends, args.setting, args.dataset, args.split, args.episodes)
+    if args.save and args.against:
+        raise ValueError("--save and --against: expected one of them (record here, or compare)")
+    if args.save:
+        meta = bc.record_trace(Path(args.save), args.backend, args.setting, args.dataset,
+                               args.split, args.episodes)  # fmt: skip
+        print(f"wrote {len(meta['files'])} episodes ({meta['label']}) to {args.save}; compare "
+              f"elsewhere with `check-render --against {args.save}`")  # fmt: skip
+        return 0
+    if args.against:
+        r = bc.compare_with_trace(Path(args.against), args.backend)
+        backends = r.backends
+    else:
+        backends = tuple(b.strip() for b in args.backends.split(","))
+        r = bc.compare_backends(backends, args.setting, args.dataset, args.split, args.episodes)
     s = r.summary()
+    setting = "of the trace" if args.against else args.setting
     print(
-        f"{' vs '.join(backends)}, setting {args.setting}: {s['episodes']} episodes, "
+        f"{' vs '.join(backends)}, setting {setting}: {s['episodes']} episodes, "
         f"{s['agent_steps']} agent-steps; visible instances (>= 20 px) differ in "
         f"{s['visible_differs']}, action outcomes in {s['outcome_differs']}; pixels agreeing "
-        f"{s['pixel_agreement_mean']:.4f} (min {s['pixel_agreement_min']:.4f}); depth median "
+        f"{s['pixel_agreement_mean']:.4f} (min {s['pixel_agreement_min']:.4f}; of those that "
+        f"differ, {s['edge_share']:.1%} on an instance edge, {s['robots_share']:.1%} where two "
+        f"robots' bodies coincide); depth median "
         f"|diff| at most {s['depth_median_abs_max_m'] * 1000:.2f} mm"
     )
     for line in s["first_divergence"]:
@@ -676,6 +691,15 @@ def build_parser() -> argparse.ArgumentParser:
     cr.add_argument("--split", default="test", choices=("train", "val", "test"))
     cr.add_argument("--episodes", type=int, default=3, help="an evenly spread subset")
     cr.add_argument("--json", help="also write the comparison here")
+    cr.add_argument(
+        "--save",
+        help="instead: play the expert on this machine's backend and keep what the comparison "
+        "reads in this folder, to compare on another machine (--against)",
+    )
+    cr.add_argument("--against", help="instead: replay a --save folder here and compare")
+    cr.add_argument(
+        "--backend", choices=("cpu", "gpu"), help="with --save/--against (default: gpu if found)"
+    )
     cr.set_defaults(func=_check_render)
 
     tr = sub.add_parser("train", help="train the paper's learned modules (CPU)")
