@@ -335,9 +335,9 @@ def _check_render(args: argparse.Namespace) -> int:
         f"{' vs '.join(backends)}, setting {setting}: {s['episodes']} episodes, "
         f"{s['agent_steps']} agent-steps; visible instances (>= 20 px) differ in "
         f"{s['visible_differs']}, action outcomes in {s['outcome_differs']}; pixels agreeing "
-        f"{s['pixel_agreement_mean']:.4f} (min {s['pixel_agreement_min']:.4f}; of those that "
-        f"differ, {s['edge_share']:.1%} on an instance edge, {s['robots_share']:.1%} where two "
-        f"robots' bodies coincide); depth median "
+        f"{s['pixel_agreement_mean']:.4f} (min {s['pixel_agreement_min']:.4f}; of the pixels "
+        f"that differ, {s['edge_share']:.1%} on an instance edge, {s['robots_share']:.1%} where "
+        f"two robots' bodies coincide); depth median "
         f"|diff| at most {s['depth_median_abs_max_m'] * 1000:.2f} mm"
     )
     for line in s["first_divergence"]:

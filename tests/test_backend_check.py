@@ -59,6 +59,7 @@ def test_lavapipe_against_itself_shows_no_difference():
 def test_check_render_without_a_gpu_says_so_in_one_line():
     one_line_error(cli("check-render", "--episodes", "1"), "no CUDA device", "cpu,cpu")
     one_line_error(cli("check-render", "--backends", "cpu,vulkan"), "expected two of cpu, gpu")
+    one_line_error(cli("check-render", "--save", "x", "--backend", "gpu"), "no CUDA device")
 
 
 def test_a_trace_replayed_on_the_same_backend_agrees_and_a_changed_one_does_not(tmp_path):

@@ -291,6 +291,15 @@ class _Recorded:
         return self.frame(self.t)
 
 
+def _checked(backend: str | None, option: str) -> str:
+    backend = backend or default_render_backend()
+    if backend not in BACKENDS:
+        raise ValueError(f"{option} {backend}: expected one of {', '.join(BACKENDS)}")
+    if backend == "gpu" and default_render_backend() != "gpu":
+        raise ValueError(f"{option} gpu: SAPIEN finds no CUDA device here (expected cpu here)")
+    return backend
+
+
 def _label(backend: str) -> str:
     return f"{backend} on {platform.node() or 'this machine'}"
 
@@ -320,9 +329,7 @@ def record_trace(
     from maniskill_tidy.eval.runner import select
     from maniskill_tidy.policies import make_team
 
-    backend = backend or default_render_backend()
-    if backend not in BACKENDS:
-        raise ValueError(f"--backend {backend}: expected one of {', '.join(BACKENDS)}")
+    backend = _checked(backend, "--backend")
     kwargs = _env_kwargs(setting, dataset, split)
     env = gym.make("HeteroTidy-v1", render_backend=backend, **kwargs)
     out.mkdir(parents=True, exist_ok=True)
@@ -357,7 +364,7 @@ def compare_with_trace(
         raise ValueError(f"--against {trace}: no {TRACE_META} there (expected a check-render "
                          "--save folder)")  # fmt: skip
     meta = json.loads((trace / TRACE_META).read_text())
-    backend = backend or default_render_backend()
+    backend = _checked(backend, "--backend")
     kwargs = meta["env"]
     if meta.get("dataset_hash") and _dataset_hash(kwargs["dataset"]) != meta["dataset_hash"]:
         raise ValueError(
