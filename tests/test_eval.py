@@ -423,6 +423,9 @@ def test_the_papers_orderings_are_checked_on_our_learned_rows():
     runs["intencomm"] = _summary("intencomm", [False] * 20, 20)
     found = {claim: (verdict, evidence) for claim, verdict, evidence in orderings(runs)}
     assert found[ces_claim][0] == "holds"
+    runs["sa-learned"] = _summary("sa-learned", [True] * 20, 0)  # SA beats every row
+    found = {claim: (verdict, evidence) for claim, verdict, evidence in orderings(runs)}
+    assert found[ces_claim][0] == "fails (tied with condcomm, cmprcomm, intencomm)"  # all 0
 
 
 SA_CELLS = "0.1 0.2 0.15 0.3 0.4 0.35 0.5 0.6 0.55 100.0 200.0 150.0 - - - - - -"

@@ -295,11 +295,15 @@ def orderings(runs: dict[str, dict]) -> list[tuple[str, str, str]]:
         for p in PARTIAL_COMMUNICATION:
             m = runs[p]["metrics"]["All"]
             scores[p] = ces(m["Success"], sa, m["ACm"]) if m["ACm"] else None
-        best = max((p for p in scores if scores[p] is not None), key=lambda p: scores[p],
-                   default=None)  # fmt: skip
+        sent = [v for v in scores.values() if v is not None]
+        best = [p for p, v in scores.items() if sent and v == max(sent)]
+        # CES is clipped at zero, so when SA beats every row they all tie: that is no "best".
+        verdict = "holds" if best == ["hangrcom"] else "fails"
+        if "hangrcom" in best and len(best) > 1:
+            verdict += " (tied with " + ", ".join(p for p in best if p != "hangrcom") + ")"
         evidence = ", ".join(f"{p} {v:.1f}" if v is not None else f"{p} -"
                              for p, v in scores.items())  # fmt: skip
-        out.append((claim, "holds" if best == "hangrcom" else "fails", "CES " + evidence))
+        out.append((claim, verdict, "CES " + evidence))
     for policy, name in ABLATIONS.items():
         out.append((f"{name} < Ours", *_less(runs, policy, "hangrcom", strict=True)))
     return out
