@@ -459,3 +459,41 @@ def test_paper_tables_are_extracted_cell_by_cell():
         assert shipped["rows"] == paper_reference()["rows"]
         assert shipped["ablations"] == paper_reference()["ablations"]
         assert shipped["ablations"]["I"]["Ours w/o Comm."][:3] == [0.045, 0.030, 0.038]
+
+
+def _played(success: list[bool]) -> list[EpisodeRecord]:
+    return [EpisodeRecord(episode=f"house_{i:05d}/task_0/start_0", task_kind="Single", k=2,
+                          success=ok, reasonable=2 if ok else 0, found=2, length=100, comm=0,
+                          agents=3, seed=0) for i, ok in enumerate(success)]  # fmt: skip
+
+
+def test_orderings_judge_the_noise_by_the_paired_interval_when_the_episodes_are_there(tmp_path):
+    """Ours wins 6 of 40 shared episodes and loses none: the two runs' own intervals overlap,
+    the paired one excludes zero, so the leaderboard must not call the order unresolved."""
+    from maniskill_tidy.eval.leaderboard import orderings, write_leaderboard
+
+    ours = [i < 10 for i in range(40)]
+    ablated = [i < 4 for i in range(40)]
+    runs = {"hangrcom": _summary("hangrcom", ours, 240),
+            "wo_know": _summary("wo_know", ablated, 240)}  # fmt: skip
+    claim = "Ours w/o Know. < Ours"
+    unpaired = dict((c, v) for c, v, _ in orderings(runs))[claim]
+    assert unpaired == "holds (intervals overlap)"
+    played = {"hangrcom": _played(ours), "wo_know": _played(ablated)}
+    found = {c: (v, e) for c, v, e in orderings(runs, played)}
+    assert found[claim][0] == "holds"
+    assert "paired -0.150 [" in found[claim][1] and "over 40 episodes" in found[claim][1]
+    played["wo_know"] = _played([i < 4 or i >= 36 for i in range(40)])  # wins 4 elsewhere
+    runs["wo_know"] = _summary("wo_know", [r.success for r in played["wo_know"]], 240)
+    found = {c: (v, e) for c, v, e in orderings(runs, played)}
+    assert found[claim][0] == "holds (paired interval includes 0)"  # 0.20 < 0.25: 4 won, 6 lost
+    # through the files: write_leaderboard pairs the runs' episodes.jsonl
+    for policy, summary in runs.items():
+        folder = tmp_path / "results" / "setting_I" / policy
+        folder.mkdir(parents=True)
+        (folder / "summary.json").write_text(json.dumps(summary))
+        lines = "".join(json.dumps(r.to_dict()) + "\n" for r in played[policy])
+        (folder / "episodes.jsonl").write_text(lines + '{"torn": ')  # a run still writing
+    md = write_leaderboard(tmp_path).read_text()
+    row = next(line for line in md.splitlines() if line.startswith(f"| {claim} |"))
+    assert "| holds (paired interval includes 0) |" in row and "over 40 episodes" in row
