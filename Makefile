@@ -67,7 +67,7 @@ train: setup
 # same demonstrations and features as hangrcom, built once per setting if missing (Setting I:
 # 35-45 min on 2 cores; Setting II: 51-63 min). Training itself takes 29-55 min per variant and
 # setting on 2 cores (train_seconds 1753-2800 in the Setting I cards, agents/*/setting_I/card.json;
-# 2172-3279 in the Setting II cards so far), except w/o HierDec. (no sub-goal predictor F_g
+# 2172-3279 in the Setting II cards), except w/o HierDec. (no sub-goal predictor F_g
 # over the map crop: 294 s for Setting I, 491 s for Setting II). SA trains on its own team's
 # demonstrations (one manipulator: 14 min to render them, 609 s to train on 2 cores;
 # SA(Oracle) uses its checkpoint); QMIX learns by playing (agents/qmix.yaml: 300 episodes,
