@@ -150,7 +150,7 @@ def _compare(args: argparse.Namespace) -> int:
         path = folder if folder.suffix == ".jsonl" else folder / "episodes.jsonl"
         if not path.is_file():
             raise ValueError(f"{folder}: no episodes.jsonl; expected an eval run's folder")
-        runs.append(read_records(path))
+        runs.append(read_records(path, repair=False))
     d = paired_difference(*runs)
     print(f"A - B over the {d['episodes']} episodes both played (95 % paired interval)")
     print(f"{'metric':>8} {'A - B':>8} {'interval':>20} {'A better':>9} {'A worse':>8}")

@@ -497,3 +497,5 @@ def test_orderings_judge_the_noise_by_the_paired_interval_when_the_episodes_are_
     md = write_leaderboard(tmp_path).read_text()
     row = next(line for line in md.splitlines() if line.startswith(f"| {claim} |"))
     assert "| holds (paired interval includes 0) |" in row and "over 40 episodes" in row
+    jsonl = tmp_path / "results" / "setting_I" / "wo_know" / "episodes.jsonl"
+    assert jsonl.read_text().endswith('{"torn": ')  # a reader leaves the writer's line alone

@@ -96,16 +96,14 @@ def collect(root: Path) -> dict[str, dict[str, dict]]:
 
 def episodes(root: Path, setting: str, runs: dict[str, dict]) -> dict[str, list[EpisodeRecord]]:
     """policy -> the finished episodes of its run (a run shared from another setting reads that
-    setting's), for the paired comparisons of ``orderings``. Read only: a run still being
-    written keeps its torn last line."""
+    setting's), for the paired comparisons of ``orderings``."""
+    from maniskill_tidy.eval.runner import read_records
+
     out = {}
     for policy, s in runs.items():
-        path = Path(root) / "results" / f"setting_{s.get('shared_from', setting)}" / policy
-        path = path / "episodes.jsonl"
-        if path.is_file():
-            lines = path.read_text().splitlines(keepends=True)
-            out[policy] = [EpisodeRecord.from_dict(json.loads(line))
-                           for line in lines if line.endswith("\n")]  # fmt: skip
+        folder = Path(root) / "results" / f"setting_{s.get('shared_from', setting)}" / policy
+        if records := read_records(folder / "episodes.jsonl", repair=False):
+            out[policy] = records
     return out
 
 

@@ -179,8 +179,10 @@ def select(starts: list[int], spec: str | int | None) -> list[int]:
     return sorted({int(i) for i in np.linspace(0, n_total, spec, endpoint=False)})
 
 
-def read_records(path: Path) -> list[EpisodeRecord]:
-    """Records in a JSONL file; a torn last line (an interrupted write) is cut off the file."""
+def read_records(path: Path, repair: bool = True) -> list[EpisodeRecord]:
+    """Records in a JSONL file; a torn last line (an interrupted write) is left out, and with
+    ``repair`` (the runner, before it resumes) cut off the file. Readers of another process's
+    run (compare, leaderboard) pass ``repair=False``: that line may still be being written."""
     if not path.exists():
         return []
     records, good = [], 0
@@ -194,7 +196,7 @@ def read_records(path: Path) -> list[EpisodeRecord]:
         except (ValueError, TypeError):
             break
         good += len(line)
-    if good < len(data):
+    if repair and good < len(data):
         with open(path, "r+b") as f:
             f.truncate(good)
     return records
