@@ -2,7 +2,7 @@
 PY := .venv/bin/python
 DEMO_DIR := out/demo
 
-.PHONY: setup test test-slow demo bench leaderboard train train-all lint clean
+.PHONY: setup test test-slow demo bench assets leaderboard train train-all lint clean
 
 setup:
 	@bash scripts/setup.sh
@@ -28,6 +28,16 @@ demo: setup
 
 bench: setup
 	$(PY) -m maniskill_tidy.bench
+
+# The v2 look's assets (maintainers): Debian's sweethome3d-furniture (CC0 / CC-BY models) and the
+# robosuite wheel (MIT textures, unpacked, not installed) -> maniskill_tidy/assets/data/ with its
+# manifest and ATTRIBUTION.md. `make demo` and `make test` use the committed set instead.
+ROBOSUITE_WHEEL := out/sources/robosuite-1.5.2-py3-none-any.whl
+assets: setup
+	dpkg-query -W sweethome3d-furniture >/dev/null 2>&1 || \
+	  (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq sweethome3d-furniture)
+	test -f $(ROBOSUITE_WHEEL) || $(PY) -m pip download --no-deps -q robosuite==1.5.2 -d out/sources
+	$(PY) -m maniskill_tidy.cli derive-assets --robosuite $(ROBOSUITE_WHEEL)
 
 # The leaderboard's runs: the 120-house dataset, then every team on its test split under the
 # standard protocol (the first start of every meta-task: 200 episodes per setting). Each `eval`

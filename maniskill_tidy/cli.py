@@ -445,6 +445,22 @@ def _derive(args: argparse.Namespace) -> int:
     return 0
 
 
+def _derive_assets(args: argparse.Namespace) -> int:
+    from maniskill_tidy.assets.derive import Derivation
+
+    start = time.perf_counter()
+    out = Path(args.out) if args.out else None
+    derivation = Derivation(Path(args.sh3d), Path(args.robosuite), **({"out": out} if out else {}))
+    manifest = derivation.run()
+    triangles = sum(e.get("triangles", 0) for e in manifest.values())
+    size = sum((derivation.out / rel).stat().st_size for rel in manifest)
+    print(
+        f"wrote {derivation.out}: {len(manifest)} files, {size / 1e6:.1f} MB, "
+        f"{triangles} triangles in all ({time.perf_counter() - start:.0f} s)"
+    )
+    return 0
+
+
 def _derive_word_vectors(args: argparse.Namespace) -> int:
     from maniskill_tidy.knowledge.word_vectors import derive_word_vectors
     from maniskill_tidy.tasks.dataset import write_atomic
@@ -734,6 +750,22 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--reference", required=True, help="ProcTHOR's databases/ folder")
     d.add_argument("--out")
     d.set_defaults(func=_derive)
+
+    da = sub.add_parser(
+        "derive-assets", help="regenerate the v2 meshes, textures and manifest (maintainers)"
+    )
+    da.add_argument(
+        "--sh3d",
+        default="/usr/share/sweethome3d/furniture",
+        help="folder of the .sh3f archives (Debian's sweethome3d-furniture)",
+    )
+    da.add_argument(
+        "--robosuite",
+        default="out/sources/robosuite-1.5.2-py3-none-any.whl",
+        help="the robosuite wheel (`pip download --no-deps robosuite==1.5.2`)",
+    )
+    da.add_argument("--out", help="default: the package's maniskill_tidy/assets/data")
+    da.set_defaults(func=_derive_assets)
 
     wv = sub.add_parser(
         "derive-word-vectors", help="regenerate the GloVe table of type names (maintainers)"

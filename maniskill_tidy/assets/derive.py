@@ -1,0 +1,358 @@
+"""``maniskill-tidy derive-assets``: the offline sources -> the package's v2 asset set.
+
+Reads ``selection.toml`` (what dresses what), the Sweet Home 3D furniture archives, the
+robosuite wheel's textures and the installed mani-skill wheel's files, and writes
+``assets/data/``: one GLB per model variant (decimated, UVs kept, textures downscaled, scaled to
+the nominal size of the type it dresses), PNG textures for rooms and procedural parts, a small
+environment map, ``manifest.json`` (source, licence, author, sha256, triangles per file) and
+``ATTRIBUTION.md``. Deterministic: the same sources give the same bytes.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import shutil
+import tempfile
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from PIL import Image, ImageDraw
+from tqdm import tqdm
+
+from maniskill_tidy.assets import ASSET_DIR, SELECTION
+from maniskill_tidy.assets.meshes import (
+    budget_split,
+    decimate,
+    downscale,
+    glb_bytes,
+    image_png,
+    load_obj,
+    part_mesh,
+)
+from maniskill_tidy.assets.shapes import SHAPES
+from maniskill_tidy.assets.sources import Sh3fArchive, WheelFiles
+from maniskill_tidy.houses.furniture import TEMPLATES, parts_for
+from maniskill_tidy.knowledge import load_catalog
+
+FURNITURE_TRIANGLES = 1500
+OBJECT_TRIANGLES = 300
+FURNITURE_TEXTURE = 256  # px, longest side
+OBJECT_TEXTURE = 128
+ROOM_TEXTURE = 256
+ALLOWED_LICENCES = ("CC0-1.0", "CC-BY-3.0", "CC-BY-3.0-US", "MIT", "Apache-2.0")
+DEFAULT_SH3D = Path("/usr/share/sweethome3d/furniture")
+KINDS = ("furniture", "objects", "textures", "environment")
+
+
+@dataclass
+class Derivation:
+    sh3d: Path
+    robosuite: Path
+    out: Path = ASSET_DIR
+    only: set[str] | None = None  # asset paths to derive (tests); None: all
+    manifest: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.selection = tomllib.loads(SELECTION.read_text())
+        self.sources = self.selection["sources"]
+        for label, src in self.sources.items():
+            if src["licence"] not in ALLOWED_LICENCES:
+                raise ValueError(f"source {label}: licence {src['licence']} is not shippable")
+        self.archives: dict[str, Sh3fArchive] = {}
+        self.wheel: WheelFiles | None = None
+        self.tmp = Path(tempfile.mkdtemp(prefix="derive-assets-"))
+
+    # ------------------------------------------------------------------ sources
+    def archive(self, label: str) -> Sh3fArchive:
+        if label not in self.archives:
+            self.archives[label] = Sh3fArchive(self.sh3d / self.sources[label]["archive"], label)
+        return self.archives[label]
+
+    def texture_source(self, ref: str) -> tuple[Image.Image, dict]:
+        label, name = ref.split("/", 1)
+        if label != "robosuite":
+            raise ValueError(f"texture {ref!r}: expected robosuite/NAME")
+        if self.wheel is None:
+            self.wheel = WheelFiles(self.robosuite)
+        path = self.wheel.file(f"robosuite/models/assets/textures/{name}.png")
+        return Image.open(path), self.credit(label, f"robosuite/models/assets/textures/{name}.png")
+
+    def credit(self, label: str, model: str, **extra) -> dict:
+        src = self.sources[label]
+        base = {"source": label, "model": model, "licence": src["licence"]}
+        return base | {"holder": src["holder"]} | extra
+
+    def model_parts(self, ref: str, box: np.ndarray) -> tuple[list, dict]:
+        """A catalog model fitted into ``box`` (x0, y0, z0, x1, y1, z1, metres)."""
+        label, stem = ref.split("/", 1)
+        arc = self.archive(label)
+        model = arc.model(stem)
+        obj = arc.extract(model, self.tmp / label)
+        parts = load_obj(obj, model.rotation)
+        lo = np.min([m.vertices.min(0) for m, _ in parts], axis=0)
+        hi = np.max([m.vertices.max(0) for m, _ in parts], axis=0)
+        scale = (box[3:] - box[:3]) / np.maximum(hi - lo, 1e-9)
+        offset = box[:3] - lo * scale
+        for m, _ in parts:
+            m.vertices = m.vertices * scale + offset
+            normals = m.vertex_normals / np.where(scale == 0, 1, scale)  # inverse transpose
+            m.vertex_normals = normals / np.linalg.norm(normals, axis=1, keepdims=True).clip(1e-9)
+        extra = {"name": model.name, "author": model.creator} | arc.credit(model)
+        rest = None
+        if model.drop_on_top:
+            rest = model.drop_on_top / model.size[2]  # fraction of the model's height
+        return parts, self.credit(label, model.path, **extra) | {"rest_fraction": rest}
+
+    # ------------------------------------------------------------------ writing
+    def write(self, rel: str, data: bytes, entry: dict) -> None:
+        path = self.out / rel
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_bytes(data)
+        self.manifest[rel] = entry | {"sha256": hashlib.sha256(data).hexdigest()}
+
+    def wanted(self, rel: str) -> bool:
+        return self.only is None or rel in self.only
+
+    def mesh_file(self, rel: str, parts: list, budget: int, texture: int, entry: dict) -> None:
+        counts = [len(m.faces) for m, _ in parts]
+        meshes = []
+        for (m, look), target in zip(parts, budget_split(counts, budget), strict=True):
+            corners, normals, uvs = decimate(m, look["uv"], target)
+            if len(corners):
+                meshes.append(part_mesh(corners, normals, uvs, look, texture))
+        verts = np.concatenate([m.vertices for m in meshes])
+        size = (verts.max(0) - verts.min(0)).round(4).tolist()
+        entry = entry | {"triangles": int(sum(len(m.faces) for m in meshes)), "size": size}
+        self.write(rel, glb_bytes(meshes), entry)
+
+    # ------------------------------------------------------------------ asset kinds
+    def furniture(self) -> None:
+        for type_name, variants in tqdm(self.selection["furniture"].items(), desc="furniture"):
+            w, d, h = nominal_size(type_name)
+            rest_z = rest_height(type_name, [w, d, h])
+            for variant in variants:
+                if isinstance(variant, str):
+                    name = variant.split("/", 1)[1]
+                    pieces = [{"model": variant, "box": [0, 0, 0, 1, 1, 1]}]
+                else:
+                    pieces = variant["parts"]
+                    name = "+".join(p["model"].split("/", 1)[1] for p in pieces)
+                rel = f"furniture/{type_name}/{name}.glb"
+                if not self.wanted(rel):
+                    continue
+                parts, credits, rest = [], [], None
+                for p in pieces:
+                    frac = np.asarray(p["box"], dtype=np.float64)
+                    height = h
+                    if len(pieces) == 1:
+                        # objects rest on the model's own resting level: scale it to the spec's
+                        got_parts, credit = self.model_parts(p["model"], unit_box(w, d, 1.0))
+                        rest = credit.pop("rest_fraction")
+                        height = rest_z / rest if rest and rest_z else h
+                        for m, _ in got_parts:
+                            m.vertices[:, 2] *= height
+                    else:
+                        box = np.array([w, d, h, w, d, h]) * frac - [w / 2, d / 2, 0] * 2
+                        got_parts, credit = self.model_parts(p["model"], box)
+                        credit.pop("rest_fraction")
+                    parts += got_parts
+                    credits.append(credit)
+                entry = {
+                    "kind": "furniture",
+                    "type": type_name,
+                    "nominal_size": [w, d, h],
+                    "rest_height": rest_z,
+                    "sources": credits,
+                }
+                self.mesh_file(rel, parts, FURNITURE_TRIANGLES, FURNITURE_TEXTURE, entry)
+
+    def objects(self) -> None:
+        catalog = load_catalog()
+        for type_name, variants in tqdm(self.selection["objects"].items(), desc="objects"):
+            w, d, h = catalog.info(type_name).size
+            for variant in variants:
+                label, name = variant.split("/", 1) if "/" in variant else variant.split(":", 1)
+                rel = f"objects/{type_name}/{name}.glb"
+                if not self.wanted(rel):
+                    continue
+                if variant.startswith("shape:"):
+                    parts, credits = SHAPES[name](self, (w, d, h))
+                else:
+                    parts, credit = self.model_parts(variant, unit_box(1.0, 1.0, 1.0))
+                    credit.pop("rest_fraction")
+                    credits = [credit]
+                    fit_object(parts, (w, d, h))
+                entry = {"kind": "object", "type": type_name, "sources": credits}
+                self.mesh_file(rel, parts, OBJECT_TRIANGLES, OBJECT_TEXTURE, entry)
+
+    def textures(self) -> None:
+        for name, spec in tqdm(self.selection["textures"].items(), desc="textures"):
+            rel = f"textures/{name}.png"
+            if not self.wanted(rel):
+                continue
+            image, credit = self.texture_source(spec["from"])
+            image = downscale(image, ROOM_TEXTURE)
+            if "grid" in spec:
+                image = grout(image, int(spec["grid"]))
+            self.write(rel, image_png(image), {"kind": "texture", "sources": [credit]})
+
+    def environment(self) -> None:
+        import cv2
+        import mani_skill
+
+        spec = self.selection["environment"]
+        rel = "environment.hdr"
+        if not self.wanted(rel):
+            return
+        inner = spec["map"].split("/", 1)[1]
+        src = Path(mani_skill.__file__).parent / "assets" / inner
+        hdr = cv2.imread(str(src), cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR)
+        if hdr is None:
+            raise FileNotFoundError(f"{src}: cannot read the environment map")
+        small = cv2.resize(hdr, tuple(spec["size"]), interpolation=cv2.INTER_AREA)
+        ok, data = cv2.imencode(".hdr", small)
+        credit = self.credit("mani-skill", f"mani_skill/assets/{inner}")
+        self.write(rel, data.tobytes(), {"kind": "environment", "sources": [credit]})
+
+    def run(self, kinds: tuple[str, ...] = KINDS) -> dict:
+        """Derive into a fresh folder, then swap it in: a failed run leaves the old set."""
+        final, staged = self.out, self.only is None  # a partial run (tests) writes in place
+        if staged:
+            self.out = final.with_name(f".{final.name}.new")
+            shutil.rmtree(self.out, ignore_errors=True)
+        try:
+            for kind in kinds:
+                getattr(self, kind)()
+            if self.wheel is None:
+                self.wheel = WheelFiles(self.robosuite)
+            mit = self.wheel.file("robosuite-1.5.2.dist-info/licenses/LICENSE").read_text()
+            write_manifest(self.out, self.manifest)
+            (self.out / "ATTRIBUTION.md").write_text(attribution(self.manifest, mit))
+            if staged:
+                shutil.rmtree(final, ignore_errors=True)
+                self.out.replace(final)
+        finally:
+            shutil.rmtree(self.tmp, ignore_errors=True)
+            self.out = final
+        return self.manifest
+
+
+def unit_box(w: float, d: float, h: float) -> np.ndarray:
+    return np.array([-w / 2, -d / 2, 0.0, w / 2, d / 2, h])
+
+
+def nominal_size(type_name: str) -> list[float]:
+    """The middle of the type's size ranges (``houses/furniture.py``)."""
+    return [round((lo + hi) / 2, 3) for lo, hi in TEMPLATES[type_name].size]
+
+
+def rest_height(type_name: str, size: list[float]) -> float | None:
+    """Height of the piece's main resting surface (a top, a seat), None if it has none."""
+    surfaces, _ = parts_for(type_name, size)
+    for s in surfaces:
+        if s.link == "body" and s.name in ("top", "seat"):
+            return float(s.center[2])
+    return None
+
+
+def fit_object(parts: list, size: tuple[float, float, float]) -> None:
+    """Scale a model into the object's box, turned a quarter if its footprint lies across."""
+    verts = np.concatenate([m.vertices for m, _ in parts])
+    ext = verts.max(0) - verts.min(0)
+    w, d, _ = size
+    turn = (ext[0] > ext[1]) != (w > d) and max(ext[0], ext[1]) > 1.3 * min(ext[0], ext[1])
+    for m, _ in parts:
+        if turn:
+            m.vertices = m.vertices[:, [1, 0, 2]] * [-1, 1, 1]
+            m.vertex_normals = m.vertex_normals[:, [1, 0, 2]] * [-1, 1, 1]
+    verts = np.concatenate([m.vertices for m, _ in parts])
+    lo, hi = verts.min(0), verts.max(0)
+    scale = np.asarray(size) / np.maximum(hi - lo, 1e-9)
+    offset = np.array([-size[0] / 2, -size[1] / 2, 0.0]) - lo * scale
+    for m, _ in parts:
+        m.vertices = m.vertices * scale + offset
+        n = m.vertex_normals / scale
+        m.vertex_normals = n / np.linalg.norm(n, axis=1, keepdims=True).clip(1e-9)
+
+
+def grout(image: Image.Image, tiles: int) -> Image.Image:
+    """Tiles: ``tiles`` x ``tiles`` per image, with grey grout lines and a slight per-tile tone."""
+    img = image.copy()
+    draw = ImageDraw.Draw(img)
+    w, h = img.size
+    rng = np.random.default_rng(tiles)
+    px = np.asarray(img, dtype=np.float32)
+    for i in range(tiles):
+        for j in range(tiles):
+            x0, x1 = i * w // tiles, (i + 1) * w // tiles
+            y0, y1 = j * h // tiles, (j + 1) * h // tiles
+            px[y0:y1, x0:x1] *= 0.94 + 0.06 * rng.random()
+    img = Image.fromarray(px.clip(0, 255).astype(np.uint8))
+    draw = ImageDraw.Draw(img)
+    line = max(1, w // 128)
+    for i in range(tiles + 1):
+        x = min(w - 1, i * w // tiles)
+        draw.line([(x, 0), (x, h)], fill=(150, 150, 145), width=line)
+        y = min(h - 1, i * h // tiles)
+        draw.line([(0, y), (w, y)], fill=(150, 150, 145), width=line)
+    return img
+
+
+def write_manifest(out: Path, manifest: dict, merge: bool = False) -> Path:
+    path = out / "manifest.json"
+    if merge and path.exists():
+        manifest = json.loads(path.read_text()) | manifest
+    text = json.dumps(dict(sorted(manifest.items())), indent=1, sort_keys=True)
+    path.write_text(text + "\n")
+    return path
+
+
+LICENCE_NAMES = {
+    "CC0-1.0": "CC0 1.0 (public domain dedication)",
+    "CC-BY-3.0": "Creative Commons Attribution 3.0 Unported",
+    "CC-BY-3.0-US": "Creative Commons Attribution 3.0 United States",
+    "MIT": "MIT",
+    "Apache-2.0": "Apache License 2.0",
+}
+
+
+def attribution(manifest: dict, mit_text: str) -> str:
+    """ATTRIBUTION.md: every CC-BY model with title and author, the MIT and Apache notices."""
+    lines = [
+        "# Attribution of the v2 assets",
+        "",
+        "Written by `maniskill-tidy derive-assets` from `manifest.json`; do not edit by hand.",
+        "The files under `data/` are derived works: decimated, rescaled, textures downscaled.",
+        "",
+    ]
+    by_source: dict[str, dict[str, list[str]]] = {}
+    for rel, entry in sorted(manifest.items()):
+        for src in entry.get("sources", []):
+            key = src["model"] if "model" in src else rel
+            by_source.setdefault(src["source"], {}).setdefault(key, []).append(rel)
+            by_source[src["source"]].setdefault("__meta__", [src["licence"], src.get("holder", "")])
+    for label in sorted(by_source):
+        models = by_source[label]
+        licence, holder = models.pop("__meta__")
+        lines += [f"## {label}: {LICENCE_NAMES.get(licence, licence)}", ""]
+        if holder:
+            lines += [f"Copyright holders: {holder}.", ""]
+        for model, used in sorted(models.items()):
+            entry = next(
+                s
+                for r in used
+                for s in manifest[r].get("sources", [])
+                if s.get("model", r) == model
+            )
+            who = entry.get("author") or ""
+            title = entry.get("title") or entry.get("name") or ""
+            origin = f" <{entry['origin']}>" if entry.get("origin") else ""
+            credit = f'"{title}" by {who}{origin}' if title and who else title or who
+            lines.append(f"- `{model}`{': ' + credit if credit else ''} -> {', '.join(used)}")
+        if licence == "MIT":
+            lines += ["", "```", mit_text.strip(), "```"]
+        lines.append("")
+    return "\n".join(lines)
