@@ -59,6 +59,7 @@ from maniskill_tidy.tasks.teams import load_preset
 from maniskill_tidy.tasks.teams import team as parse_team
 
 QUALITIES = ("fast", "high")
+LOOKS = ("flat", "realistic")  # HeteroTidy-v1, HeteroTidy-v2
 SEG_MAX = 2**15 - 1  # the render shader writes instance ids as int16
 FAR = 30.0  # metres, camera far plane
 LIMIT = 1e4  # bound of poses (m) and camera matrices in the observation space
@@ -98,12 +99,15 @@ class HeteroTidyEnv(BaseEnv):
         camera_size: tuple[int, int] = (224, 224),
         camera_fov: float = 90.0,
         quality: str = "fast",
+        visuals: str = "flat",
         render_size: tuple[int, int] = (640, 480),
         max_steps: int = MAX_STEPS,
         **kwargs,
     ) -> None:
         if quality not in QUALITIES:
             raise ValueError(f"quality {quality!r} is not one of {QUALITIES}")
+        if visuals not in LOOKS:
+            raise ValueError(f"visuals {visuals!r} is not one of {LOOKS}")
         if kwargs.get("num_envs", 1) != 1:
             raise ValueError("HeteroTidy-v1 simulates one house per env: num_envs must be 1")
         if isinstance(setting, str) and setting.endswith(".json"):
@@ -117,7 +121,7 @@ class HeteroTidyEnv(BaseEnv):
         self.fixed_episode = episode
         self.camera_size, self.camera_fov = tuple(camera_size), float(camera_fov)
         self.render_size, self.max_steps = tuple(render_size), int(max_steps)
-        self.quality = quality
+        self.quality, self.visuals = quality, visuals
         self.knowledge = load_placement()
         self.hs: HouseScene | None = None
         self._episode: Episode | None = None
@@ -166,7 +170,12 @@ class HeteroTidyEnv(BaseEnv):
     # ------------------------------------------------------------------ scene
     def _load_scene(self, options: dict) -> None:
         house = self.episodes.houses[self._episode.house_id]
-        self.hs = HouseScene(self.scene, house, shadows=self.quality == "high")
+        self.hs = HouseScene(
+            self.scene,
+            house,
+            shadows=self.quality == "high",
+            realistic=self.visuals == "realistic",
+        )
         self.manipulation = Manipulation(self.hs)
         self.robot_actors, self.robots = [], []
         for name, kind in zip(self.agent_names, self.kinds, strict=True):
@@ -177,6 +186,7 @@ class HeteroTidyEnv(BaseEnv):
             self.hs.instances[entity.per_scene_id] = Instance(
                 entity.per_scene_id, "robot", kind.name, name
             )
+        self.hs.build_ceilings()  # v2 only; after the robots, so every other id is v1's
 
     def _load_lighting(self, options: dict) -> None:
         """Lights come with the house (``HouseScene``)."""
@@ -447,8 +457,13 @@ class HeteroTidyEnv(BaseEnv):
         return float(now - before)
 
     def render(self):
-        """The third-person view (``render_mode="rgb_array"``) as an (H, W, 3) uint8 array."""
-        image = super().render()
+        """The third-person view (``render_mode="rgb_array"``) as an (H, W, 3) uint8 array; it
+        looks down into the house, so v2's ceilings are hidden while it renders."""
+        self.hs.set_ceilings_visible(False)
+        try:
+            image = super().render()
+        finally:
+            self.hs.set_ceilings_visible(True)
         if image is None:
             return None
         image = image.cpu().numpy() if hasattr(image, "cpu") else np.asarray(image)

@@ -38,6 +38,7 @@ from maniskill_tidy.sim.appearance import (
     object_look,
 )
 from maniskill_tidy.sim.furniture_shapes import Part, body_parts, link_parts
+from maniskill_tidy.sim.realistic import RealisticLook, attach
 
 DOOR_OPEN = math.pi / 2  # radians, clipped to the joint's limit
 DRAWER_OPEN = 0.6  # fraction of the drawer's travel
@@ -72,22 +73,27 @@ def material(colour: RGB) -> sapien.render.RenderMaterial:
     return sapien.render.RenderMaterial(base_color=[*colour, 1.0], roughness=0.8, metallic=0.0)
 
 
-def add_part(builder, part: Part, collision: bool = True) -> None:
+def add_part(builder, part: Part, collision: bool = True, visual=True, mat=None) -> None:
+    """A primitive's visual (``mat`` or its flat colour; none if ``visual`` is False) and its
+    collision shape."""
     pose = sapien.Pose(p=list(part.center))
-    mat = material(part.colour)
+    mat = mat or material(part.colour)
     if part.kind == "box":
-        builder.add_box_visual(pose=pose, half_size=list(part.half), material=mat)
+        if visual:
+            builder.add_box_visual(pose=pose, half_size=list(part.half), material=mat)
         if collision:
             builder.add_box_collision(pose=pose, half_size=list(part.half))
     elif part.kind == "cylinder":
         cyl = pose * _UPRIGHT
-        builder.add_cylinder_visual(
-            pose=cyl, radius=part.half[0], half_length=part.half[2], material=mat
-        )
+        if visual:
+            builder.add_cylinder_visual(
+                pose=cyl, radius=part.half[0], half_length=part.half[2], material=mat
+            )
         if collision:
             builder.add_cylinder_collision(pose=cyl, radius=part.half[0], half_length=part.half[2])
     elif part.kind == "sphere":
-        builder.add_sphere_visual(pose=pose, radius=part.half[0], material=mat)
+        if visual:
+            builder.add_sphere_visual(pose=pose, radius=part.half[0], material=mat)
         if collision:
             builder.add_sphere_collision(pose=pose, radius=part.half[0])
     else:
@@ -121,8 +127,11 @@ def open_position(j) -> float:
 class HouseScene:
     """Builds ``house`` into ``scene`` (a ManiSkillScene) once; episodes then only move objects."""
 
-    def __init__(self, scene, house: House, shadows: bool = False) -> None:
+    def __init__(self, scene, house: House, shadows: bool = False, realistic: bool = False) -> None:
+        """``realistic``: the v2 look (``sim/realistic.py``); else v1's flat colours."""
         self.scene, self.house, self.shadows = scene, house, shadows
+        self.look = RealisticLook(house) if realistic else None
+        self.ceilings: list[sapien.Entity] = []
         self.instances: dict[int, Instance] = {}
         self.objects: dict[str, sapien.Entity] = {}
         self.bodies: dict[str, sapien.physx.PhysxRigidDynamicComponent] = {}
@@ -153,17 +162,40 @@ class HouseScene:
         for room in self.house.rooms:
             b = self.scene.create_actor_builder()
             colour = FLOOR_COLOURS.get(room.type, DEFAULT_FLOOR)
-            for x0, y0, x1, y1 in rectilinear_strips(room.polygon):
+            strips = rectilinear_strips(room.polygon)
+            for x0, y0, x1, y1 in strips:
                 part = Part(
                     "box",
                     ((x0 + x1) / 2, (y0 + y1) / 2, -0.05),
                     ((x1 - x0) / 2, (y1 - y0) / 2, 0.05),
                     colour,
                 )
-                add_part(b, part)
+                add_part(b, part, visual=self.look is None)
             b.initial_pose = sapien.Pose()
-            self._register(
-                self._raw(b.build_static(f"floor_{room.id}")), "floor", room.type, room.id
+            entity = self._raw(b.build_static(f"floor_{room.id}"))
+            if self.look:
+                attach(entity, self.look.floor_shapes(room, strips))
+            self._register(entity, "floor", room.type, room.id)
+
+    def build_ceilings(self) -> None:
+        """v2: a ceiling per room, built last so that every other segmentation id is v1's.
+        Agent cameras see it; ``set_ceilings_visible`` hides it for the third-person view."""
+        if not self.look:
+            return
+        height = max((w.height for w in self.house.walls), default=2.6)
+        for room in self.house.rooms:
+            b = self.scene.create_actor_builder()
+            b.initial_pose = sapien.Pose()
+            entity = self._raw(b.build_static(f"ceiling_{room.id}"))
+            strips = rectilinear_strips(room.polygon)
+            attach(entity, self.look.ceiling_shapes(room, strips, height))
+            self._register(entity, "ceiling", room.type, room.id)
+            self.ceilings.append(entity)
+
+    def set_ceilings_visible(self, visible: bool) -> None:
+        for entity in self.ceilings:
+            entity.find_component_by_type(sapien.render.RenderBodyComponent).visibility = float(
+                visible
             )
 
     def _build_walls(self) -> None:
@@ -196,21 +228,33 @@ class HouseScene:
                 spans = new
             b = self.scene.create_actor_builder()
             yaw = math.atan2(uy, ux)
+            boxes = []
             for s0, s1, z0, z1 in spans:
                 if s1 - s0 < 1e-4 or z1 - z0 < 1e-4:
                     continue
                 mid = (s0 + s1) / 2
-                pose = sapien.Pose(p=[xa + ux * mid, ya + uy * mid, (z0 + z1) / 2], q=yaw_quat(yaw))
+                centre = [xa + ux * mid, ya + uy * mid, (z0 + z1) / 2]
+                pose = sapien.Pose(p=centre, q=yaw_quat(yaw))
                 half = [(s1 - s0) / 2, wall.thickness / 2, (z1 - z0) / 2]
-                b.add_box_visual(pose=pose, half_size=half, material=material(WALL_COLOUR))
+                if self.look is None:
+                    b.add_box_visual(pose=pose, half_size=half, material=material(WALL_COLOUR))
                 b.add_box_collision(pose=pose, half_size=half)
+                boxes.append((np.array(centre), half, yaw))
             b.initial_pose = sapien.Pose()
-            self._register(self._raw(b.build_static(wall.id)), "wall", "Wall", wall.id)
+            entity = self._raw(b.build_static(wall.id))
+            if self.look:
+                frames = self.look.door_frames(wall, doors_on.get(wall.id, []))
+                attach(entity, self.look.wall_shapes(wall, boxes) + frames)
+            self._register(entity, "wall", "Wall", wall.id)
 
     def _build_lights(self) -> None:
         """Ambient, a sun-like directional light and the ceiling lights. With shadows ("high"
         quality) the directional light casts them: point-light shadows cost a cube map each and
-        measured about 1 step/s for Setting I on 2 cores, too slow to use."""
+        measured about 1 step/s for Setting I on 2 cores, too slow to use. v2 adds image-based
+        ambient light from an environment map and dims the flat ambient term to match."""
+        if self.look:
+            self.look.light(self.scene, self.shadows)
+            return
         self.scene.set_ambient_light([0.35, 0.35, 0.35])
         self.scene.add_directional_light(
             [0.3, 0.2, -1.0],
@@ -227,10 +271,15 @@ class HouseScene:
         return sapien.Pose(p=list(f.position), q=yaw_quat(f.yaw))
 
     def _build_furniture(self, f: Furniture) -> None:
+        look = self.look
         if not f.joints:
             b = self.scene.create_actor_builder()
+            model = look.furniture_model(f) if look else None
+            if model:
+                b.add_visual_from_file(model[0], scale=model[1])
             for part in body_parts(f):
-                add_part(b, part)
+                dress = look.part_material(f, part.colour) if look else None
+                add_part(b, part, visual=model is None, mat=dress)
             b.initial_pose = self._furniture_pose(f)
             self._register(self._raw(b.build_static(f.id)), "furniture", f.type, f.id)
             return
@@ -239,7 +288,7 @@ class HouseScene:
         root = ab.create_link_builder()
         root.set_name("body")
         for part in body_parts(f):
-            add_part(root, part)
+            add_part(root, part, mat=look.part_material(f, part.colour) if look else None)
         for j in f.joints:
             link = ab.create_link_builder(root)
             link.set_name(j.name)
@@ -265,7 +314,8 @@ class HouseScene:
                     part.colour,
                 )
                 # doors are drawn but do not collide: open at 90 degrees a door may touch a wall
-                add_part(link, moved, collision=j.type != "revolute")
+                dress = look.part_material(f, part.colour, link=True) if look else None
+                add_part(link, moved, collision=j.type != "revolute", mat=dress)
         art = ab.build(name=f.id, fix_root_link=True)
         raw = art._objs[0]
         for joint in raw.get_active_joints():  # stiff drives hold doors and drawers in place
@@ -283,7 +333,10 @@ class HouseScene:
         b = self.scene.create_actor_builder()
         mat = material(colour)
         centre = sapien.Pose(p=[0.0, 0.0, h / 2])
-        if shape == "sphere":
+        model = self.look.object_model(o) if self.look else None
+        if model:
+            b.add_visual_from_file(model[0], scale=model[1])
+        elif shape == "sphere":
             b.add_sphere_visual(pose=centre, radius=min(w, d, h) / 2, material=mat)
         elif shape == "cylinder":
             b.add_cylinder_visual(
