@@ -373,6 +373,14 @@ def _stats(args: argparse.Namespace) -> int:
     return 0
 
 
+def _show_looks(args: argparse.Namespace) -> int:
+    from maniskill_tidy.envs.looks_figure import looks_figure
+
+    out = looks_figure(Path(args.out), args.dataset, args.split, args.episode)
+    print(f"wrote {out}")
+    return 0
+
+
 def _show_house(args: argparse.Namespace) -> int:
     from maniskill_tidy.houses.draw import draw_house
 
@@ -591,6 +599,13 @@ def build_parser() -> argparse.ArgumentParser:
     h.add_argument("--procthor", help="draw a house of a ProcTHOR .jsonl(.gz) file")
     h.add_argument("--out", default="house.png")
     h.set_defaults(func=_show_house)
+
+    sl = sub.add_parser("show-looks", help="one episode in HeteroTidy-v1 and -v2, as a PNG")
+    sl.add_argument("--dataset", help="default: the shipped dataset")
+    sl.add_argument("--split", default="test")
+    sl.add_argument("--episode", type=int, default=0)
+    sl.add_argument("--out", required=True)
+    sl.set_defaults(func=_show_looks)
 
     e = sub.add_parser(
         "run-episode", help="play one episode with an exploring policy; save camera and house PNGs"

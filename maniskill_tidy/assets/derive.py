@@ -44,7 +44,7 @@ OBJECT_TEXTURE = 128
 ROOM_TEXTURE = 256
 ALLOWED_LICENCES = ("CC0-1.0", "CC-BY-3.0", "CC-BY-3.0-US", "MIT", "Apache-2.0")
 DEFAULT_SH3D = Path("/usr/share/sweethome3d/furniture")
-KINDS = ("furniture", "objects", "textures", "environment")
+KINDS = ("furniture", "objects", "robots", "textures", "environment")
 
 
 @dataclass
@@ -187,6 +187,24 @@ class Derivation:
                     fit_object(parts, (w, d, h))
                 entry = {"kind": "object", "type": type_name, "sources": credits}
                 self.mesh_file(rel, parts, OBJECT_TRIANGLES, OBJECT_TEXTURE, entry)
+
+    def robots(self) -> None:
+        import mani_skill
+
+        from maniskill_tidy.assets import robots
+
+        inner = self.selection["robots"]["fetch"].split("/", 1)[1]
+        root = Path(mani_skill.__file__).parent / "assets"
+        links = None
+        for kind in tqdm(robots.KINDS, desc="robots"):
+            rel = f"robots/{kind}.glb"
+            if not self.wanted(rel):
+                continue
+            links = links or robots.fetch_links(root / "robots/fetch/fetch.urdf")
+            credit = self.credit("mani-skill", f"mani_skill/assets/{inner}", name="Fetch")
+            entry = {"kind": "robot", "type": kind, "sources": [credit]}
+            parts = robots.robot_parts(links, kind)
+            self.mesh_file(rel, parts, robots.TRIANGLES[kind], FURNITURE_TEXTURE, entry)
 
     def textures(self) -> None:
         for name, spec in tqdm(self.selection["textures"].items(), desc="textures"):

@@ -132,8 +132,17 @@ def downscale(image: Image.Image, max_side: int) -> Image.Image:
 
 
 def part_mesh(corners, normals, uvs, look: dict, max_texture: int) -> trimesh.Trimesh:
-    """One material's faces as a trimesh with a PBR material glTF can carry."""
+    """One material's faces as a trimesh with a PBR material glTF can carry. The renderer culls
+    back faces, so each face is wound to agree with its normals (a mirrored source transform
+    would otherwise leave a part invisible from outside)."""
     n = len(corners)
+    geometric = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    flip = np.einsum("fd,fd->f", geometric, normals.mean(axis=1)) < 0
+    corners, normals = corners.copy(), normals.copy()
+    corners[flip], normals[flip] = corners[flip][:, ::-1], normals[flip][:, ::-1]
+    if uvs is not None:
+        uvs = uvs.copy()
+        uvs[flip] = uvs[flip][:, ::-1]
     kwargs = {"roughnessFactor": 0.7, "metallicFactor": 0.0}
     if uvs is not None and look["image"] is not None:
         material = trimesh.visual.material.PBRMaterial(

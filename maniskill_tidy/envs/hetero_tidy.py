@@ -179,7 +179,7 @@ class HeteroTidyEnv(BaseEnv):
         self.manipulation = Manipulation(self.hs)
         self.robot_actors, self.robots = [], []
         for name, kind in zip(self.agent_names, self.kinds, strict=True):
-            actor = build_robot(self.scene, name, kind)
+            actor = build_robot(self.scene, name, kind, realistic=self.visuals == "realistic")
             entity = actor._objs[0]
             self.robot_actors.append(actor)
             self.robots.append(entity)

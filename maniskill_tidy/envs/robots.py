@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import sapien
 
+from maniskill_tidy import assets
 from maniskill_tidy.houses.schema import AGENT_RADIUS
 from maniskill_tidy.sim.appearance import RGB
 from maniskill_tidy.sim.furniture_shapes import Part, box
@@ -90,11 +91,15 @@ def robot_parts(kind: RobotKind) -> list[Part]:
     return parts
 
 
-def build_robot(scene, name: str, kind: RobotKind) -> sapien.Entity:
-    """A kinematic robot in ``scene`` (a ManiSkillScene); returns its SAPIEN entity."""
+def build_robot(scene, name: str, kind: RobotKind, realistic: bool = False) -> sapien.Entity:
+    """A kinematic robot in ``scene`` (a ManiSkillScene); returns its SAPIEN entity. v2
+    (``realistic``) draws the kind from Fetch's meshes (``assets/robots.py``)."""
     builder = scene.create_actor_builder()
-    for part in robot_parts(kind):
-        add_part(builder, part, collision=False)
+    if realistic:
+        builder.add_visual_from_file(str(assets.path(f"robots/{kind.name}.glb")))
+    else:
+        for part in robot_parts(kind):
+            add_part(builder, part, collision=False)
     builder.initial_pose = sapien.Pose(p=[0.0, 0.0, -10.0])
     return builder.build_kinematic(name)
 
