@@ -64,6 +64,14 @@ def test_every_furniture_and_pickupable_type_has_a_v2_look():
     catalog = load_catalog()
     missing = [t for t in catalog.pickupable if not assets.variants("object", t)]
     assert not missing, missing
+    from maniskill_tidy.envs.robots import HIGH_SCOUT, LOW_MANIPULATOR, LOW_SCOUT, MANIPULATOR
+
+    for kind in (LOW_SCOUT, HIGH_SCOUT, MANIPULATOR, LOW_MANIPULATOR):
+        entry = assets.manifest()[f"robots/{kind.name}.glb"]
+        assert entry["kind"] == "robot"
+        # drawn at its final size: the body inside the grid's radius, the head at the camera
+        assert max(entry["size"][:2]) / 2 <= kind.radius + 0.005, kind.name
+        assert kind.camera_height <= entry["size"][2] <= kind.camera_height + 0.1, kind.name
 
 
 def test_triangle_budget_holds():
