@@ -194,3 +194,64 @@ def test_derivation_is_deterministic(tmp_path):
     shipped = assets.manifest()
     for rel in few:
         assert manifest[rel]["sha256"] == shipped[rel]["sha256"], rel
+
+
+def test_a_camera_sees_its_room_and_through_doorways_only():
+    from maniskill_tidy.houses.schema import Door, House, Room, Wall
+    from maniskill_tidy.sim.visibility import Arc, FloorPlan, camera_arc
+
+    # three rooms in a row, A | B | C, 3 m each, doorways at y = 1.5 (A|B) and y = 0.5 (B|C)
+    rooms = [
+        Room(r, "LivingRoom", [[x, 0], [x + 3, 0], [x + 3, 3], [x, 3]])
+        for r, x in (("A", 0), ("B", 3), ("C", 6))
+    ]
+    walls = [Wall("w_ab", [3, 0], [3, 3], ["A", "B"]), Wall("w_bc", [6, 0], [6, 3], ["B", "C"])]
+    doors = [
+        Door("d_ab", "w_ab", ["A", "B"], [3, 1.5], width=0.9),
+        Door("d_bc", "w_bc", ["B", "C"], [6, 0.5], width=0.9),
+    ]
+    house = House.__new__(House)
+    house.rooms, house.walls, house.doors = rooms, walls, doors
+    plan = FloorPlan(house)
+    ahead = camera_arc(0.0, 0.0, np.radians(90))  # looking along +x, level
+    assert plan.visible_rooms([1.0, 1.5], ahead) == {"A", "B", "C"}  # through both doorways
+    assert plan.visible_rooms([1.0, 0.3], camera_arc(np.pi / 2, 0.0, np.radians(60))) == {"A"}
+    back = camera_arc(np.pi, 0.0, np.radians(90))
+    assert plan.visible_rooms([1.0, 1.5], back) == {"A"}  # the doorways are behind it
+    # from a corner of A every ray through the first doorway passes above the second
+    assert plan.visible_rooms([0.2, 0.2], camera_arc(0.3, 0.0, np.radians(90))) == {"A", "B"}
+    down = camera_arc(0.0, np.radians(60), np.radians(90))
+    assert down.half == np.pi  # looking steeply down, the view reaches behind the camera
+    assert plan.visible_rooms([3.1, 1.5], Arc(0.0, 0.1)) == {"A", "B", "C"}  # in a doorway
+    assert Arc(0.0, 0.5).meet(Arc(np.pi, 0.5)) is None
+
+
+@pytest.mark.parametrize("setting", ["I", "II"])
+def test_hiding_unseen_rooms_changes_no_pixel(setting):
+    from maniskill_tidy.envs.hetero_tidy import HeteroTidyEnv
+
+    kw = {"setting": setting, "split": "test", "visuals": "realistic"}
+    hiding = HeteroTidyEnv(**kw)
+    drawing = HeteroTidyEnv(**kw, hide_unseen_rooms=False)
+    assert hiding.hide_unseen_rooms and not drawing.hide_unseen_rooms
+    rng = np.random.default_rng(5)
+    hidden = 0
+    try:
+        for seed in (0, 1):
+            hiding.reset(seed=seed)
+            drawing.reset(seed=seed)
+            for _ in range(12):
+                act = {
+                    n: int(rng.choice(7, p=[0.5, 0.1, 0.1, 0.1, 0.1, 0.05, 0.05]))
+                    for n in hiding.agent_names
+                }
+                a, *_ = hiding.step(act)
+                b, *_ = drawing.step(act)
+                for n in hiding.agent_names:
+                    hidden += len(hiding.house.rooms) - len(hiding.visible_rooms(n))
+                    for key in ("rgb", "depth", "segmentation"):
+                        assert np.array_equal(a[n][key], b[n][key]), (seed, n, key)
+    finally:
+        hiding.close()
+        drawing.close()
+    assert hidden > 0  # the comparison was not vacuous: rooms were hidden

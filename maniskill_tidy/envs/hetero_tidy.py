@@ -54,6 +54,7 @@ from maniskill_tidy.envs.robots import build_robot, robot_kind, robot_pose
 from maniskill_tidy.houses.schema import House
 from maniskill_tidy.knowledge import FLOOR, load_placement
 from maniskill_tidy.sim.house_scene import HouseScene, Instance
+from maniskill_tidy.sim.visibility import camera_arc
 from maniskill_tidy.tasks.metatask import apply_task
 from maniskill_tidy.tasks.teams import load_preset
 from maniskill_tidy.tasks.teams import team as parse_team
@@ -100,6 +101,7 @@ class HeteroTidyEnv(BaseEnv):
         camera_fov: float = 90.0,
         quality: str = "fast",
         visuals: str = "flat",
+        hide_unseen_rooms: bool | None = None,
         render_size: tuple[int, int] = (640, 480),
         max_steps: int = MAX_STEPS,
         **kwargs,
@@ -122,6 +124,12 @@ class HeteroTidyEnv(BaseEnv):
         self.camera_size, self.camera_fov = tuple(camera_size), float(camera_fov)
         self.render_size, self.max_steps = tuple(render_size), int(max_steps)
         self.quality, self.visuals = quality, visuals
+        # v2 "fast" hides, per camera, the rooms it cannot see (sim/visibility.py): the same
+        # pixels, less geometry for the software rasterizer. Not with shadows ("high"): the
+        # shadow pass would miss what hidden pieces cast into the room in view. v1 renders
+        # everything, as it always did.
+        default_hide = visuals == "realistic" and quality == "fast"
+        self.hide_unseen_rooms = default_hide if hide_unseen_rooms is None else hide_unseen_rooms
         self.knowledge = load_placement()
         self.hs: HouseScene | None = None
         self._episode: Episode | None = None
@@ -480,12 +488,39 @@ class HeteroTidyEnv(BaseEnv):
         if not names:
             return {}
         self.scene.update_render(update_sensors=True, update_human_render_cameras=False)
+        self._take_pictures(names)
         out = {}
         for name in names:
             cam = self._sensors[name].camera._render_cameras[0]
-            cam.take_picture()
             out[name] = cam.get_picture("PositionSegmentation")[..., 3].astype(np.int32)
         return out
+
+    def _take_pictures(self, names: list[str]) -> None:
+        """Each camera renders with the rooms it cannot see hidden (if ``hide_unseen_rooms``);
+        everything is shown again afterwards (the third-person view draws the whole house)."""
+        groups = None
+        if self.hide_unseen_rooms:
+            movers = dict(self.hs.objects) | dict(zip(self.agent_names, self.robots, strict=True))
+            groups = self.hs.room_groups(movers)
+        try:
+            for name in names:
+                if groups is not None:
+                    self.hs.show_rooms(groups, self.visible_rooms(name))
+                self._sensors[name].camera._render_cameras[0].take_picture()
+        finally:
+            if groups is not None:
+                self.hs.show_rooms(groups, None)
+
+    def visible_rooms(self, name: str) -> set[str]:
+        """The rooms ``name``'s camera may see from where it is (floor plan and doorways)."""
+        a = self.agents[self.agent_names.index(name)]
+        kind = self.kinds[self.agent_names.index(name)]
+        x, y = self.hs.house.navgrid.center(*a.cell)
+        yaw = math.radians(a.rotation)
+        xy = (x + kind.camera_ahead * math.cos(yaw), y + kind.camera_ahead * math.sin(yaw))
+        w, h = self.camera_size
+        view = camera_arc(yaw, math.radians(a.horizon), math.radians(self.camera_fov), w / h)
+        return self.hs.plan.visible_rooms(xy, view)
 
     def _camera_matrices(self, name: str) -> tuple[np.ndarray, np.ndarray, int, int]:
         """(intrinsic, extrinsic, width, height) as PickUp and PutDown use them."""
@@ -497,12 +532,13 @@ class HeteroTidyEnv(BaseEnv):
         render = self._renders_every_step
         if render:
             self.scene.update_render(update_sensors=True, update_human_render_cameras=False)
+        if render:
+            self._take_pictures(self.agent_names)
         obs = {}
         for i, a in enumerate(self.agents):
             cam = self._sensors[a.name].camera._render_cameras[0]
             o = {}
             if render:
-                cam.take_picture()
                 if visual.rgb:
                     o["rgb"] = np.ascontiguousarray(cam.get_picture("Color")[..., :3])
                 pos = cam.get_picture("PositionSegmentation")

@@ -39,6 +39,7 @@ from maniskill_tidy.sim.appearance import (
 )
 from maniskill_tidy.sim.furniture_shapes import Part, body_parts, link_parts
 from maniskill_tidy.sim.realistic import RealisticLook, attach
+from maniskill_tidy.sim.visibility import FloorPlan
 
 DOOR_OPEN = math.pi / 2  # radians, clipped to the joint's limit
 DRAWER_OPEN = 0.6  # fraction of the drawer's travel
@@ -132,6 +133,8 @@ class HouseScene:
         self.scene, self.house, self.shadows = scene, house, shadows
         self.look = RealisticLook(house) if realistic else None
         self.ceilings: list[sapien.Entity] = []
+        self.plan = FloorPlan(house)
+        self._room_bodies: dict[str, list] = {r.id: [] for r in house.rooms}  # never move
         self.instances: dict[int, Instance] = {}
         self.objects: dict[str, sapien.Entity] = {}
         self.bodies: dict[str, sapien.physx.PhysxRigidDynamicComponent] = {}
@@ -142,9 +145,35 @@ class HouseScene:
         self._build()
 
     # ------------------------------------------------------------------ building
-    def _register(self, entity: sapien.Entity, kind: str, type_: str, id_: str) -> None:
+    def _register(
+        self, entity: sapien.Entity, kind: str, type_: str, id_: str, room: str | None = None
+    ) -> None:
         sid = entity.per_scene_id
         self.instances[sid] = Instance(sid, kind, type_, id_)
+        body = entity.find_component_by_type(sapien.render.RenderBodyComponent)
+        if room in self._room_bodies and body is not None:
+            self._room_bodies[room].append(body)
+
+    # ------------------------------------------------------------------ hiding rooms
+    def room_groups(self, movers: dict[str, sapien.Entity]) -> dict[str, list]:
+        """Render bodies per room: floors, ceilings, furniture, and ``movers`` (objects,
+        robots) by where they are now. Walls are never hidden; a mover outside every room
+        neither."""
+        groups = {rid: list(bodies) for rid, bodies in self._room_bodies.items()}
+        for entity in movers.values():
+            rid = self.plan.room_at(entity.get_pose().p)
+            body = entity.find_component_by_type(sapien.render.RenderBodyComponent)
+            if rid is not None and body is not None:
+                groups[rid].append(body)
+        return groups
+
+    @staticmethod
+    def show_rooms(groups: dict[str, list], visible: set[str] | None) -> None:
+        """Hide every group outside ``visible`` (None: show all) for the next picture."""
+        for rid, bodies in groups.items():
+            v = 1.0 if visible is None or rid in visible else 0.0
+            for body in bodies:
+                body.visibility = v
 
     def _raw(self, actor) -> sapien.Entity:
         return actor._objs[0]
@@ -175,7 +204,7 @@ class HouseScene:
             entity = self._raw(b.build_static(f"floor_{room.id}"))
             if self.look:
                 attach(entity, self.look.floor_shapes(room, strips))
-            self._register(entity, "floor", room.type, room.id)
+            self._register(entity, "floor", room.type, room.id, room=room.id)
 
     def build_ceilings(self) -> None:
         """v2: a ceiling per room, built last so that every other segmentation id is v1's.
@@ -189,7 +218,7 @@ class HouseScene:
             entity = self._raw(b.build_static(f"ceiling_{room.id}"))
             strips = rectilinear_strips(room.polygon)
             attach(entity, self.look.ceiling_shapes(room, strips, height))
-            self._register(entity, "ceiling", room.type, room.id)
+            self._register(entity, "ceiling", room.type, room.id, room=room.id)
             self.ceilings.append(entity)
 
     def set_ceilings_visible(self, visible: bool) -> None:
@@ -281,7 +310,7 @@ class HouseScene:
                 dress = look.part_material(f, part.colour) if look else None
                 add_part(b, part, visual=model is None, mat=dress)
             b.initial_pose = self._furniture_pose(f)
-            self._register(self._raw(b.build_static(f.id)), "furniture", f.type, f.id)
+            self._register(self._raw(b.build_static(f.id)), "furniture", f.type, f.id, room=f.room)
             return
         ab = self.scene.create_articulation_builder()
         ab.initial_pose = self._furniture_pose(f)
@@ -325,7 +354,7 @@ class HouseScene:
         for link in raw.links:
             short = link.entity.name.removeprefix(prefix)
             id_ = f.id if short == "body" else f"{f.id}/{short}"
-            self._register(link.entity, "furniture", f.type, id_)
+            self._register(link.entity, "furniture", f.type, id_, room=f.room)
 
     def _build_object(self, o: PlacedObject) -> None:
         shape, colour = object_look(o.type)
