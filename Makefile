@@ -18,12 +18,14 @@ demo: setup
 	$(PY) -m maniskill_tidy.cli validate $(DEMO_DIR)/dataset
 	$(PY) -m maniskill_tidy.cli dataset-stats $(DEMO_DIR)/dataset --png $(DEMO_DIR)/dataset-stats.png
 	$(PY) -m maniskill_tidy.cli show-house --dataset $(DEMO_DIR)/dataset --split train --index 0 --task 0 --out $(DEMO_DIR)/house.png
-	$(PY) -m maniskill_tidy.cli run-episode --dataset $(DEMO_DIR)/dataset --split test --setting I --episode 0 --steps 30 --out $(DEMO_DIR)/episode
-	$(PY) -m maniskill_tidy.cli show-map --dataset $(DEMO_DIR)/dataset --split test --episode 0 --agent agent_2 --out $(DEMO_DIR)/map.png
+	$(PY) -m maniskill_tidy.cli show-looks --dataset $(DEMO_DIR)/dataset --split test --episode 0 --out $(DEMO_DIR)/looks.png
+	$(PY) -m maniskill_tidy.cli run-episode --env HeteroTidy-v2 --dataset $(DEMO_DIR)/dataset --split test --setting I --episode 0 --steps 30 --out $(DEMO_DIR)/episode
+	$(PY) -m maniskill_tidy.cli show-map --env HeteroTidy-v2 --dataset $(DEMO_DIR)/dataset --split test --episode 0 --agent agent_2 --out $(DEMO_DIR)/map.png
 	$(PY) -m maniskill_tidy.cli eval --policy expert --setting I --split test --episodes 5 --dataset $(DEMO_DIR)/dataset --record all --out $(DEMO_DIR)
+	$(PY) -m maniskill_tidy.cli eval --env HeteroTidy-v2 --policy expert --setting I --split test --episodes 5 --dataset $(DEMO_DIR)/dataset --out $(DEMO_DIR)
 	$(PY) -m maniskill_tidy.cli eval --policy heuristic-broadcast --setting I --split test --episodes 2 --dataset $(DEMO_DIR)/dataset --record all --out $(DEMO_DIR)
 	$(PY) -m maniskill_tidy.cli leaderboard --root $(DEMO_DIR)/eval
-	@echo "demo pictures: $(DEMO_DIR)/house.png $(DEMO_DIR)/dataset-stats.png $(DEMO_DIR)/episode/*.png $(DEMO_DIR)/map.png"
+	@echo "demo pictures: $(DEMO_DIR)/looks.png (v1 and v2) $(DEMO_DIR)/house.png $(DEMO_DIR)/dataset-stats.png $(DEMO_DIR)/episode/*.png $(DEMO_DIR)/map.png"
 	@echo "demo evaluation: $(DEMO_DIR)/eval/LEADERBOARD.md; recordings: $(DEMO_DIR)/recordings (maniskill-tidy replay FILE)"
 
 bench: setup

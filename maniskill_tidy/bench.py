@@ -77,7 +77,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--houses", type=int, default=120)
     parser.add_argument(
         "--only",
-        choices=("generation", "env", "map", "map-accuracy", "eval", "throughput"),
+        choices=("generation", "env", "looks", "map", "map-accuracy", "eval", "throughput"),
         default=None,
     )
     parser.add_argument("--eval-dataset", help="dataset for the eval row (default: shipped one)")
@@ -114,6 +114,14 @@ def main(argv: list[str] | None = None) -> int:
         print(report(bench_map()))
         print()
         if args.only == "map":
+            return 0
+    if args.only in (None, "looks"):
+        from maniskill_tidy.envs.looks_benchmark import bench_looks, bench_memory, report
+
+        runs = [bench_looks(s, q) for s in ("I", "II") for q in ("fast", "high")]
+        print(report(runs, [bench_memory("realistic")]))
+        print()
+        if args.only == "looks":
             return 0
     if args.only != "generation":
         from maniskill_tidy.envs.benchmark import bench_env, report

@@ -105,6 +105,7 @@ def _eval(args: argparse.Namespace) -> int:
         episodes=episode_spec(args.episodes),
         seed=args.seed,
         task_type=args.task_type,
+        env=args.env,
     )
     summary = evaluate(
         cfg,
@@ -381,6 +382,14 @@ def _show_looks(args: argparse.Namespace) -> int:
     return 0
 
 
+def _show_assets(args: argparse.Namespace) -> int:
+    from maniskill_tidy.sim.gallery import write_gallery
+
+    for path in write_gallery(Path(args.out)):
+        print(f"wrote {path}")
+    return 0
+
+
 def _show_house(args: argparse.Namespace) -> int:
     from maniskill_tidy.houses.draw import draw_house
 
@@ -485,7 +494,14 @@ def _run_episode(args: argparse.Namespace) -> int:
 
     episode = int(args.episode) if args.episode.isdigit() else args.episode
     r = run_episode(
-        Path(args.out), args.setting, args.dataset, args.split, episode, args.steps, args.seed
+        Path(args.out),
+        args.setting,
+        args.dataset,
+        args.split,
+        episode,
+        args.steps,
+        args.seed,
+        env_id=args.env,
     )
     print(
         f"{r['episode']}: steps per agent {r['steps']}, {r['failed_actions']} failed actions, "
@@ -507,6 +523,7 @@ def _show_map(args: argparse.Namespace) -> int:
         episode,
         args.agent,
         tuple(args.horizons) if args.horizons else None,
+        env_id=args.env,
     )
     print(
         f"{r['title']}: {r['frames']} frames, obstacle IoU {r['iou']:.3f} over explored cells, "
@@ -515,8 +532,21 @@ def _show_map(args: argparse.Namespace) -> int:
     return 0
 
 
+def _env_option(p: argparse.ArgumentParser) -> None:
+    from maniskill_tidy import VERSIONS
+
+    p.add_argument(
+        "--env",
+        default="HeteroTidy-v1",
+        choices=tuple(VERSIONS),
+        help="the env version, i.e. the look: v1 flat-coloured primitives (the committed "
+        "results), v2 realistic meshes and materials; the task is the same",
+    )
+
+
 def _episode_options(p: argparse.ArgumentParser) -> None:
-    """Which episode a command plays: --setting, --dataset, --split, --episode."""
+    """Which episode a command plays: --setting, --dataset, --split, --episode, --env."""
+    _env_option(p)
     p.add_argument("--setting", default="I")
     p.add_argument("--dataset", help="dataset directory (default: the env's shipped dataset)")
     p.add_argument("--split", default="test")
@@ -600,6 +630,12 @@ def build_parser() -> argparse.ArgumentParser:
     h.add_argument("--out", default="house.png")
     h.set_defaults(func=_show_house)
 
+    sa = sub.add_parser(
+        "show-assets", help="every furniture and pickupable type in v2, with sources (PNG + MD)"
+    )
+    sa.add_argument("--out", default="docs")
+    sa.set_defaults(func=_show_assets)
+
     sl = sub.add_parser("show-looks", help="one episode in HeteroTidy-v1 and -v2, as a PNG")
     sl.add_argument("--dataset", help="default: the shipped dataset")
     sl.add_argument("--split", default="test")
@@ -644,6 +680,7 @@ def build_parser() -> argparse.ArgumentParser:
         "registered), or a learned team's agent config (agents/*.yaml)",
     )
     ev.add_argument("--setting", default="I", help="I, II or a preset JSON file")
+    _env_option(ev)
     ev.add_argument("--split", default="test", choices=("train", "val", "test"))
     ev.add_argument("--task-type", default="all", choices=("all", "single", "cross"))
     ev.add_argument(

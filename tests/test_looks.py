@@ -255,3 +255,36 @@ def test_hiding_unseen_rooms_changes_no_pixel(setting):
         hiding.close()
         drawing.close()
     assert hidden > 0  # the comparison was not vacuous: rooms were hidden
+
+
+def test_eval_on_v2_is_its_own_row_and_old_v1_runs_still_resume(tmp_path):
+    from maniskill_tidy.eval.leaderboard import collect, row_order
+    from maniskill_tidy.eval.runner import RunConfig, evaluate, run_dir
+
+    v1 = RunConfig("expert", "I", "test", None, episodes=1)
+    v2 = RunConfig("expert", "I", "test", None, episodes=1, env="HeteroTidy-v2")
+    s1 = evaluate(v1, tmp_path, progress=False)
+    s2 = evaluate(v2, tmp_path, progress=False)
+    assert run_dir(tmp_path, v2).name == "expert-v2" and run_dir(tmp_path, v1).name == "expert"
+    assert (s1["policy"], s1["env"]) == ("expert", "HeteroTidy-v1")
+    assert (s2["policy"], s2["env"]) == ("expert-v2", "HeteroTidy-v2")
+    run = json.loads((run_dir(tmp_path, v2) / "run.json").read_text())
+    assert run["env"] == "HeteroTidy-v2"
+    # the same episode, the same task: the privileged expert plays it alike in both looks
+    r1 = (run_dir(tmp_path, v1) / "episodes.jsonl").read_text().splitlines()
+    r2 = (run_dir(tmp_path, v2) / "episodes.jsonl").read_text().splitlines()
+    assert json.loads(r1[0])["episode"] == json.loads(r2[0])["episode"]
+    # a run file written before "env" existed is a v1 run: it resumes, it is not refused
+    path = run_dir(tmp_path, v1) / "run.json"
+    old = json.loads(path.read_text())
+    del old["env"]
+    path.write_text(json.dumps(old))
+    assert evaluate(v1, tmp_path, progress=False)["episodes"] == 1
+    runs = collect(tmp_path / "eval")["I"]
+    assert set(runs) == {"expert", "expert-v2"}
+    assert sorted(["expert-v2", "heuristic-none", "expert", "random"], key=row_order) == [
+        "random",
+        "heuristic-none",
+        "expert",
+        "expert-v2",
+    ]

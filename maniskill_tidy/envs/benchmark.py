@@ -57,7 +57,7 @@ def bench_env(
             env_rates.append(env_steps(env, steps, rng))
             raw_rates.append(raw_render_loop(env, steps))
         ratios = [e / r for e, r in zip(env_rates, raw_rates, strict=True)]
-        same, other = _reset_times(env)
+        same, other = reset_times(env)
     finally:
         env.close()
     return {
@@ -73,7 +73,7 @@ def bench_env(
     }
 
 
-def _reset_times(env: HeteroTidyEnv, repeats: int = 5) -> tuple[float, float]:
+def reset_times(env: HeteroTidyEnv, repeats: int = 5) -> tuple[float, float]:
     """Median seconds to reset to another task of the same house, and to a new house."""
     episodes = env.episodes.episodes
     first = episodes[0].house_id

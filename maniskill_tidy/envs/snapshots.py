@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from maniskill_tidy import ENV_ID, VERSIONS
 from maniskill_tidy.envs.actions import Action, move_target
 from maniskill_tidy.envs.hetero_tidy import HeteroTidyEnv
 from maniskill_tidy.plotting import plt, save_figure
@@ -78,10 +79,17 @@ def run_episode(
     episode: int | str = 0,
     steps: int = 30,
     seed: int = 0,
+    env_id: str = ENV_ID,
 ) -> dict:
     """Play ``steps`` exploring steps, then Stop; write start/end views and the house."""
     out = Path(out)
-    env = HeteroTidyEnv(setting=setting, dataset=dataset, split=split, render_mode="rgb_array")
+    env = HeteroTidyEnv(
+        setting=setting,
+        dataset=dataset,
+        split=split,
+        render_mode="rgb_array",
+        visuals=VERSIONS[env_id],
+    )
     rng = np.random.default_rng(seed)
     try:
         obs, info = env.reset(seed=seed, options={"episode": episode})

@@ -160,6 +160,14 @@ def _our_row(summary: dict, sa: dict | None) -> list[str]:
     return cells
 
 
+def row_order(policy: str) -> tuple:
+    """The paper's order; a run on another env version (``expert-v2``) right after its v1."""
+    base, _, version = policy.rpartition("-v")
+    if not (base and version.isdigit()):
+        base, version = policy, ""
+    return (ORDER.index(base) if base in ORDER else 99, base, version)
+
+
 def table(setting: str, runs: dict[str, dict], reference: dict, kind: str = "rows") -> str:
     """Our runs of one kind (``rows``: methods, ``ablations``) in one setting, each learned row
     followed by the paper's row of the same method, then the paper's rows left over."""
@@ -170,9 +178,11 @@ def table(setting: str, runs: dict[str, dict], reference: dict, kind: str = "row
     mine = {p: s for p, s in runs.items() if (p in ABLATIONS) == (kind == "ablations")}
     if kind == "ablations" and "hangrcom" in runs:
         mine["hangrcom"] = runs["hangrcom"]
-    for policy in sorted(mine, key=lambda p: (ORDER.index(p) if p in ORDER else 99, p)):
+    for policy in sorted(mine, key=row_order):
         s = runs[policy]
         tag = " (privileged)" if s.get("privileged") else ""
+        if s.get("env", "HeteroTidy-v1") != "HeteroTidy-v1":
+            tag += f" ({s['env']}: the realistic look, same episodes)"
         if s.get("shared_from"):
             tag += f" (the Setting {s['shared_from']} run: the same team and episodes)"
         if len(s.get("code_versions", [])) > 1:

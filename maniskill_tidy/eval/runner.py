@@ -21,7 +21,7 @@ import os
 import subprocess
 import time
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from pathlib import Path
 
 import numpy as np
@@ -47,6 +47,7 @@ class RunConfig:
     episodes: str | int = "standard"  # "standard", "all" or a number (see the top)
     seed: int = 0
     task_type: str = "all"
+    env: str = "HeteroTidy-v1"  # the version, i.e. the look (VERSIONS in maniskill_tidy)
 
     def env_kwargs(self, images: bool | str) -> dict:
         """``images``: True for every camera image, False for the team's own observation
@@ -68,8 +69,14 @@ class RunConfig:
         }
 
 
+def run_name(cfg: RunConfig) -> str:
+    """The team's name; a run on another env version than v1 is its own row (``expert-v2``)."""
+    name = team_class(cfg.policy).name
+    return name if cfg.env == "HeteroTidy-v1" else f"{name}-{cfg.env.rsplit('-', 1)[1]}"
+
+
 def run_dir(out: Path, cfg: RunConfig) -> Path:
-    return Path(out) / "eval" / "results" / f"setting_{cfg.setting}" / team_class(cfg.policy).name
+    return Path(out) / "eval" / "results" / f"setting_{cfg.setting}" / run_name(cfg)
 
 
 def code_version() -> str:
@@ -98,7 +105,7 @@ def make_env(cfg: RunConfig, images: bool | str = False):
 
     import maniskill_tidy  # noqa: F401  (registers the env)
 
-    return gym.make("HeteroTidy-v1", **cfg.env_kwargs(images))
+    return gym.make(cfg.env, **cfg.env_kwargs(images))
 
 
 def run_episode(env, team, index: int, seed: int, recorder=None) -> EpisodeRecord:
@@ -268,10 +275,12 @@ def evaluate(
         if config_path.exists():
             before = json.loads(config_path.read_text())
             informative = ("dataset", "code_versions")  # a moved dataset with the same hash is fine
+            # runs from before a field existed ran with its default (v1 before "env")
+            defaults = {f.name: f.default for f in fields(RunConfig)}
             diff = {
-                k: (before.get(k), v)
+                k: (before.get(k, defaults.get(k)), v)
                 for k, v in config.items()
-                if k not in informative and before.get(k) != v
+                if k not in informative and before.get(k, defaults.get(k)) != v
             }
             if diff:
                 raise ValueError(
@@ -330,7 +339,8 @@ def evaluate(
             _record_failures(cfg, records, ids, out)
 
         summary = {
-            "policy": team_cls.name,
+            "policy": run_name(cfg),
+            "env": cfg.env,
             "protocol": cfg.episodes
             if isinstance(cfg.episodes, str)
             else f"{cfg.episodes} evenly spread episodes",

@@ -159,6 +159,7 @@ def show_map(
     episode: int | str = 0,
     agent: str = "agent_0",
     horizons: tuple[int, ...] | None = None,
+    env_id: str = "HeteroTidy-v1",
 ) -> dict:
     """Reset the env to an episode, let ``agent`` look around, draw its map."""
     import gymnasium as gym
@@ -167,7 +168,7 @@ def show_map(
     from maniskill_tidy.tasks.metatask import apply_task
 
     env = gym.make(
-        "HeteroTidy-v1",
+        env_id,
         obs_mode="rgb+depth+segmentation",
         setting=setting,
         dataset=dataset,

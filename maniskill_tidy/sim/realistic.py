@@ -117,6 +117,20 @@ def attach(entity: sapien.Entity, shapes: list) -> None:
     entity.add_component(body)
 
 
+def model_scale(rel: str, f: Furniture) -> list[float]:
+    """Scale of a derived model for a piece: its footprint, and its resting level (the model's
+    own top or seat) on the spec's top or seat; the whole height where it has none."""
+    entry = assets.manifest()[rel]
+    w, d, h = entry["nominal_size"]
+    rest = entry.get("rest_height")
+    top = next(
+        (s.center[2] for s in f.surfaces if s.link == "body" and s.name in ("top", "seat")),
+        None,
+    )
+    sz = top / rest if rest and top else f.size[2] / h
+    return [f.size[0] / w, f.size[1] / d, sz]
+
+
 class RealisticLook:
     """The v2 choices for one house: textures per room, a model per piece."""
 
@@ -230,15 +244,7 @@ class RealisticLook:
         if not options:
             return None
         rel = pick(options, self.seed, f.id)
-        entry = assets.manifest()[rel]
-        w, d, h = entry["nominal_size"]
-        rest = entry.get("rest_height")
-        top = next(
-            (s.center[2] for s in f.surfaces if s.link == "body" and s.name in ("top", "seat")),
-            None,
-        )
-        sz = top / rest if rest and top else f.size[2] / h
-        return str(assets.path(rel)), [f.size[0] / w, f.size[1] / d, sz]
+        return str(assets.path(rel)), model_scale(rel, f)
 
     def part_material(self, f: Furniture, colour: RGB, link: bool = False):
         """A procedural part's material: the piece's texture, shaded as the part was."""
