@@ -1,4 +1,8 @@
-"""HeteroTidy-v1: a heterogeneous robot team tidies up a multi-room house (the paper's task).
+"""HeteroTidy-v1/-v2: a heterogeneous robot team tidies up a multi-room house (the paper's task).
+
+The two versions are two looks of one task (``visuals``): v1 draws flat-coloured primitives, v2
+the derived meshes and materials of ``sim/realistic.py`` and hides, per camera, the rooms it
+cannot see (``hide_unseen_rooms``; same pixels, less to rasterize).
 
 A ManiSkill3 ``BaseEnv``: ``_load_scene`` builds the episode's house (only when the house
 changes) and the team's robots, ``_initialize_episode`` lays out the task's misplaced objects and
