@@ -101,10 +101,7 @@ class Derivation:
             normals = m.vertex_normals / np.where(scale == 0, 1, scale)  # inverse transpose
             m.vertex_normals = normals / np.linalg.norm(normals, axis=1, keepdims=True).clip(1e-9)
         extra = {"name": model.name, "author": model.creator} | arc.credit(model)
-        rest = None
-        if model.drop_on_top:
-            rest = model.drop_on_top / model.size[2]  # fraction of the model's height
-        return parts, self.credit(label, model.path, **extra) | {"rest_fraction": rest}
+        return parts, self.credit(label, model.path, **extra)
 
     # ------------------------------------------------------------------ writing
     def write(self, rel: str, data: bytes, entry: dict) -> None:
@@ -132,7 +129,6 @@ class Derivation:
     def furniture(self) -> None:
         for type_name, variants in tqdm(self.selection["furniture"].items(), desc="furniture"):
             w, d, h = nominal_size(type_name)
-            rest_z = rest_height(type_name, [w, d, h])
             for variant in variants:
                 if isinstance(variant, str):
                     name = variant.split("/", 1)[1]
@@ -143,28 +139,26 @@ class Derivation:
                 rel = f"furniture/{type_name}/{name}.glb"
                 if not self.wanted(rel):
                     continue
-                parts, credits, rest = [], [], None
+                parts, credits, fit = [], [], {}
                 for p in pieces:
                     frac = np.asarray(p["box"], dtype=np.float64)
                     height = h
                     if len(pieces) == 1:
-                        # objects rest on the model's own resting level: scale it to the spec's
+                        # what rests on the piece must stay in view: its surfaces under the spec's
                         got_parts, credit = self.model_parts(p["model"], unit_box(w, d, 1.0))
-                        rest = credit.pop("rest_fraction")
-                        height = rest_z / rest if rest and rest_z else h
+                        height, fit = surface_safe_height(got_parts, type_name, [w, d, h])
                         for m, _ in got_parts:
                             m.vertices[:, 2] *= height
                     else:
                         box = np.array([w, d, h, w, d, h]) * frac - [w / 2, d / 2, 0] * 2
                         got_parts, credit = self.model_parts(p["model"], box)
-                        credit.pop("rest_fraction")
                     parts += got_parts
                     credits.append(credit)
                 entry = {
                     "kind": "furniture",
                     "type": type_name,
                     "nominal_size": [w, d, h],
-                    "rest_height": rest_z,
+                    "surface_fit": fit,
                     "sources": credits,
                 }
                 self.mesh_file(rel, parts, FURNITURE_TRIANGLES, FURNITURE_TEXTURE, entry)
@@ -182,7 +176,6 @@ class Derivation:
                     parts, credits = SHAPES[name](self, (w, d, h))
                 else:
                     parts, credit = self.model_parts(variant, unit_box(1.0, 1.0, 1.0))
-                    credit.pop("rest_fraction")
                     credits = [credit]
                     fit_object(parts, (w, d, h))
                 entry = {"kind": "object", "type": type_name, "sources": credits}
@@ -267,13 +260,58 @@ def nominal_size(type_name: str) -> list[float]:
     return [round((lo + hi) / 2, 3) for lo, hi in TEMPLATES[type_name].size]
 
 
-def rest_height(type_name: str, size: list[float]) -> float | None:
-    """Height of the piece's main resting surface (a top, a seat), None if it has none."""
+SURFACE_MARGIN = 0.015  # metres: a model's support surface lies this far under the spec's
+SURFACE_QUANTILE = 50  # of the heights the model shows over the middle of a surface
+SURFACE_SPAN = 0.3  # half-width of that middle, as a fraction of the surface's size
+OPEN_TO_FLOOR = 0.1  # a surface whose model top is this low (fraction) is open to the floor
+MIN_SQUASH = 0.6  # a model is never scaled below this fraction of its type's height
+
+
+def surface_safe_height(parts: list, type_name: str, size: list[float]) -> tuple[float, dict]:
+    """The height to scale a model (fitted to unit height) to, so that over each of the
+    piece's surfaces (the middle 80 %, sampled from above) 95 % of the model lies at least
+    ``SURFACE_MARGIN`` under the height the spec puts objects at: a thin object on a cushion or
+    a mattress is not swallowed by it. Without surfaces: the type's height. Returns the height
+    and, per surface, the model's top there (fraction of its height) and the scale it asked."""
+    import open3d as o3d
+
     surfaces, _ = parts_for(type_name, size)
-    for s in surfaces:
-        if s.link == "body" and s.name in ("top", "seat"):
-            return float(s.center[2])
-    return None
+    body = [s for s in surfaces if s.link == "body"]
+    if not body:
+        return size[2], {}
+    verts = np.concatenate([m.vertices for m, _ in parts]).astype(np.float32)
+    offset = np.cumsum([0] + [len(m.vertices) for m, _ in parts[:-1]])
+    faces = np.concatenate([m.faces + o for (m, _), o in zip(parts, offset, strict=True)])
+    caster = o3d.t.geometry.RaycastingScene()
+    caster.add_triangles(o3d.core.Tensor(verts), o3d.core.Tensor(faces.astype(np.uint32)))
+    asks, fit = [], {}
+    for s in body:
+        (cx, cy, z), (sw, sd) = s.center, s.size
+        gx, gy = np.meshgrid(
+            np.linspace(cx - SURFACE_SPAN * sw, cx + SURFACE_SPAN * sw, 12),
+            np.linspace(cy - SURFACE_SPAN * sd, cy + SURFACE_SPAN * sd, 12),
+        )
+        rays = np.zeros((gx.size, 6), dtype=np.float32)
+        rays[:, 0], rays[:, 1], rays[:, 2], rays[:, 5] = gx.ravel(), gy.ravel(), 5.0, -1.0
+        t = caster.cast_rays(o3d.core.Tensor(rays))["t_hit"].numpy()
+        tops = 5.0 - t[np.isfinite(t)]
+        if len(tops) == 0:
+            continue
+        top = float(np.percentile(tops, SURFACE_QUANTILE))
+        if top < OPEN_TO_FLOOR:  # an open bin or basket: the view reaches its bottom anyway
+            continue
+        ask = (z - SURFACE_MARGIN) / top
+        fit[s.name] = {"top_fraction": round(top, 4), "height": round(ask, 4)}
+        asks.append(ask)
+    if not asks:
+        return size[2], fit
+    height = min(asks)
+    if height < MIN_SQUASH * size[2]:
+        raise ValueError(
+            f"{type_name}: a model whose surface sits at {fit} of its height would be squashed "
+            f"below {MIN_SQUASH:.0%} of the type's height; choose another model"
+        )
+    return height, fit
 
 
 def fit_object(parts: list, size: tuple[float, float, float]) -> None:

@@ -118,17 +118,10 @@ def attach(entity: sapien.Entity, shapes: list) -> None:
 
 
 def model_scale(rel: str, f: Furniture) -> list[float]:
-    """Scale of a derived model for a piece: its footprint, and its resting level (the model's
-    own top or seat) on the spec's top or seat; the whole height where it has none."""
-    entry = assets.manifest()[rel]
-    w, d, h = entry["nominal_size"]
-    rest = entry.get("rest_height")
-    top = next(
-        (s.center[2] for s in f.surfaces if s.link == "body" and s.name in ("top", "seat")),
-        None,
-    )
-    sz = top / rest if rest and top else f.size[2] / h
-    return [f.size[0] / w, f.size[1] / d, sz]
+    """Scale of a derived model (made for the type's nominal size, its surfaces just under the
+    spec's: ``derive.surface_safe_height``) for a piece of another size."""
+    w, d, h = assets.manifest()[rel]["nominal_size"]
+    return [f.size[0] / w, f.size[1] / d, f.size[2] / h]
 
 
 class RealisticLook:
