@@ -354,6 +354,16 @@ def test_what_rests_on_a_model_stays_above_it():
             rays = np.zeros((gx.size, 6), np.float32)
             rays[:, 0], rays[:, 1], rays[:, 2], rays[:, 5] = gx.ravel(), gy.ravel(), 5.0, -1.0
             t = caster.cast_rays(o3d.core.Tensor(rays))["t_hit"].numpy()
-            assert np.median(5.0 - t[np.isfinite(t)]) <= z, (rel, s.name)
+            assert np.percentile(5.0 - t[np.isfinite(t)], 90) <= z, (rel, s.name)
+            # and over the whole surface, arms, backs and walls cover little of it
+            gx, gy = np.meshgrid(
+                np.linspace(cx - sw / 2 + 0.03, cx + sw / 2 - 0.03, 20),
+                np.linspace(cy - sd / 2 + 0.03, cy + sd / 2 - 0.03, 20),
+            )
+            rays = np.zeros((gx.size, 6), np.float32)
+            rays[:, 0], rays[:, 1], rays[:, 2], rays[:, 5] = gx.ravel(), gy.ravel(), 5.0, -1.0
+            t = caster.cast_rays(o3d.core.Tensor(rays))["t_hit"].numpy()
+            covered = np.mean(5.0 - t[np.isfinite(t)] > z + 0.03)
+            assert covered <= 0.1, (rel, s.name, covered)
             checked += 1
-    assert checked >= 20
+    assert checked >= 15

@@ -261,8 +261,8 @@ def nominal_size(type_name: str) -> list[float]:
 
 
 SURFACE_MARGIN = 0.015  # metres: a model's support surface lies this far under the spec's
-SURFACE_QUANTILE = 50  # of the heights the model shows over the middle of a surface
-SURFACE_SPAN = 0.3  # half-width of that middle, as a fraction of the surface's size
+SURFACE_QUANTILE = 90  # of the heights the model shows over the middle of a surface
+SURFACE_SPAN = 0.4  # half-width of that middle, as a fraction of the surface's size
 OPEN_TO_FLOOR = 0.1  # a surface whose model top is this low (fraction) is open to the floor
 MIN_SQUASH = 0.6  # a model is never scaled below this fraction of its type's height
 

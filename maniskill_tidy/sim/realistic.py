@@ -37,6 +37,7 @@ DRESSING: dict[str, tuple[str, RGB]] = {
     "Desk": ("wood_dark", (1.2, 1.2, 1.2)),
     "SideTable": ("wood_light", (0.9, 0.85, 0.8)),
     "ShelvingUnit": ("wood_grey", (0.95, 0.9, 0.85)),
+    "Bathtub": ("ceiling", (1.0, 1.0, 1.02)),  # enamel: no archive tub leaves its basin free
     "TowelHolder": ("steel", (1.0, 1.0, 1.0)),
     "HandTowelHolder": ("steel", (1.0, 1.0, 1.0)),
     "ToiletPaperHanger": ("steel", (1.0, 1.0, 1.0)),
