@@ -3,8 +3,8 @@
 SAPIEN loads ``fetch.urdf`` with the arm tucked; each robot kind keeps the links it has (a
 scout has no arm; the low scout is the bare base), and the assembled mesh is scaled so the base
 fits the 0.18 m body radius of the navigation grid and the head sits at the kind's camera
-height (``envs/robots.py``). Decimated like every other model; the base is tinted with the
-kind's colour, so teammates stay tellable apart.
+height (``envs/robots.py``). Decimated like every other model; the base wears the kind's
+colour, so teammates stay tellable apart.
 """
 
 from __future__ import annotations
@@ -102,9 +102,8 @@ def robot_parts(links: dict, kind: str) -> list[tuple[trimesh.Trimesh, dict]]:
         look = dict(look)
         n = look.pop("normals") / [xy, xy, z]
         mesh.vertex_normals = n / np.linalg.norm(n, axis=1, keepdims=True).clip(1e-9)
-        if name == "base_link" and look["image"] is not None:
-            tinted = np.asarray(look["image"].convert("RGB"), np.float32) / 255.0
-            tinted = tinted * (0.6 + 0.4 * np.asarray(colour))
-            look["image"] = Image.fromarray((tinted * 255).astype(np.uint8))
+        if name == "base_link":  # the kind's colour, plain: the base texture's seams show
+            look["image"], look["uv"] = None, None
+            look["colour"] = 0.25 + 0.65 * np.asarray(colour)
         parts.append((mesh, look))
     return parts
