@@ -218,7 +218,8 @@ def _demos(args: argparse.Namespace) -> int:
 
 
 TRAIN_DEFAULTS = {"dataset": "data/tidy120", "out": "agents/perception",
-                  "work": "data/perception", "seed": 0, "workers": 2}  # fmt: skip
+                  "work": "data/perception", "seed": 0, "workers": 2,
+                  "env": "HeteroTidy-v1"}  # fmt: skip
 
 
 def _train(args: argparse.Namespace) -> int:
@@ -259,8 +260,8 @@ def _train(args: argparse.Namespace) -> int:
 
     read_manifest(Path(args.dataset))  # a one-line error if it is not a dataset
     cards = train_perception(
-        Path(args.dataset), Path(args.out), Path(args.work), TrainConfig(seed=args.seed),
-        workers=args.workers,
+        Path(args.dataset), Path(args.out), Path(args.work),
+        TrainConfig(seed=args.seed, env=args.env), workers=args.workers,
     )  # fmt: skip
     for variant, card in cards.items():
         val = card["val"]
@@ -781,6 +782,11 @@ def build_parser() -> argparse.ArgumentParser:
         "--work", help="perception: views and resumable checkpoints, not shipped (data/perception)"
     )
     tr.add_argument("--seed", type=int, help="perception: seed (0)")
+    tr.add_argument(
+        "--env",
+        choices=("HeteroTidy-v1", "HeteroTidy-v2"),
+        help="perception: the look the views are rendered in (HeteroTidy-v1)",
+    )
     tr.add_argument("--workers", type=int, help="perception: processes rendering the views (2)")
     tr.set_defaults(func=_train)
 

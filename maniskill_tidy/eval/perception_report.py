@@ -288,7 +288,13 @@ def report(agents: Path, dataset: Path, split: str, work: Path, workers: int = 2
     build_views(
         work / "views",
         str(dataset),
-        ViewsConfig(split, cfg["tasks_per_house"][split], cfg["every"], seed=cfg["seed"]),
+        ViewsConfig(
+            split,
+            cfg["tasks_per_house"][split],
+            cfg["every"],
+            seed=cfg["seed"],
+            env=cfg.get("env", "HeteroTidy-v1"),
+        ),
         workers=workers,
     )
     views = Views(load_views(work / "views" / split))

@@ -17,14 +17,15 @@ from maniskill_tidy.parallel import run_jobs
 from maniskill_tidy.tasks.dataset import write_atomic
 
 
-def worker_env(dataset: str | None, setting: str, split: str):
-    """A worker's env, with every camera image (made once per process)."""
+def worker_env(dataset: str | None, setting: str, split: str, env_id: str = "HeteroTidy-v1"):
+    """A worker's env, with every camera image (made once per process); ``env_id`` picks the
+    look (HeteroTidy-v1 or -v2)."""
     import gymnasium as gym
 
     import maniskill_tidy  # noqa: F401  (registers the env)
 
     return gym.make(
-        "HeteroTidy-v1",
+        env_id,
         setting=setting,
         dataset=dataset,
         split=split,

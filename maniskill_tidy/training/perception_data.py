@@ -62,6 +62,7 @@ class ViewsConfig:
     setting: str = "I"
     seed: int = 0
     houses: int | None = None  # only the split's first N houses (tests, quick looks)
+    env: str = "HeteroTidy-v1"  # the look the views are rendered in
 
 
 def region_answers(things: list[tuple[str, float, float]], pose, size: int, cell: float):
@@ -206,7 +207,7 @@ _worker: dict = {}
 
 
 def _init(dataset: str | None, cfg: ViewsConfig):
-    env = worker_env(dataset, cfg.setting, cfg.split)
+    env = worker_env(dataset, cfg.setting, cfg.split, cfg.env)
     _worker.update(env=env, cfg=cfg)
     return env.close
 
@@ -240,7 +241,7 @@ def build_views(
     import maniskill_tidy  # noqa: F401
     from maniskill_tidy.eval.runner import code_version
 
-    probe = gym.make("HeteroTidy-v1", dataset=dataset, split=cfg.split, obs_mode="none")
+    probe = gym.make(cfg.env, dataset=dataset, split=cfg.split, obs_mode="none")
     episodes = probe.unwrapped.episodes
     dataset_hash = episodes.dataset_hash
     by_house: dict[str, list[int]] = {}
@@ -260,6 +261,8 @@ def build_views(
             "every": cfg.every, "setting": cfg.setting, "seed": cfg.seed}  # fmt: skip
     if cfg.houses is not None:
         want["houses"] = len(by_house)
+    if cfg.env != "HeteroTidy-v1":  # v1 views from before the field existed stay valid
+        want["env"] = cfg.env
     check_same_config(directory / "manifest.json", want)
     directory.mkdir(parents=True, exist_ok=True)
     jobs = [

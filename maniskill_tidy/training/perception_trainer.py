@@ -56,6 +56,7 @@ class TrainConfig:
     )
     tasks_per_house: dict = field(default_factory=lambda: {"train": 2, "val": 1, "test": 1})
     every: int = 3  # a frame every 3 steps per agent
+    env: str = "HeteroTidy-v1"  # the look the views are rendered in (v2: realistic)
 
 
 def _seeded(seed: int) -> None:
@@ -306,7 +307,7 @@ def train_perception(
         build_views(
             views_root,
             str(dataset),
-            ViewsConfig(split, cfg.tasks_per_house[split], cfg.every, seed=cfg.seed),
+            ViewsConfig(split, cfg.tasks_per_house[split], cfg.every, seed=cfg.seed, env=cfg.env),
             workers=workers,
             progress=progress,
         )
