@@ -20,7 +20,7 @@ from maniskill_tidy.houses.schema import Furniture, House
 from maniskill_tidy.knowledge import load_catalog
 from maniskill_tidy.sim.furniture_shapes import Part, body_parts, link_parts
 from maniskill_tidy.sim.house_scene import add_part
-from maniskill_tidy.sim.realistic import DRESSING, RealisticLook, model_scale
+from maniskill_tidy.sim.realistic import DRESSING, WHY_PROCEDURAL, RealisticLook, model_scale
 
 TILE = 200  # px
 
@@ -150,9 +150,12 @@ def table() -> str:
         for t in types:
             rels = assets.variants(kind, t)
             if kind == "furniture" and look.furniture_model(nominal_piece(t)) is None:
-                why = "doors/drawers follow joints" if TEMPLATES[t].parts(
-                    *nominal_piece(t).size)[1] else "spec's shelves/bars"  # fmt: skip
-                tex = DRESSING.get(t, (look.wood,))[0]
+                joints = nominal_piece(t).joints
+                why = "doors/drawers follow joints" if joints else WHY_PROCEDURAL[t]
+                tex = look.dressing(t)[0]
+                tex = "a wood per house" if tex == look.wood and t not in DRESSING else tex
+                if t in DRESSING and DRESSING[t][0] != tex:
+                    tex = "the house's cabinet wood"
                 lines.append(f"| {t} | procedural parts in `{tex}` ({why}) | - | primitives |")
                 continue
             cells, tris = [], []

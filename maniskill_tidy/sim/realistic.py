@@ -42,7 +42,16 @@ DRESSING: dict[str, tuple[str, RGB]] = {
     "HandTowelHolder": ("steel", (1.0, 1.0, 1.0)),
     "ToiletPaperHanger": ("steel", (1.0, 1.0, 1.0)),
 }
+# Why a piece without joints keeps procedural parts (with joints: doors and drawers follow them).
+WHY_PROCEDURAL = {
+    "ShelvingUnit": "objects rest on the spec's three shelves",
+    "TowelHolder": "towels hang on the spec's bar",
+    "HandTowelHolder": "towels hang on the spec's bar",
+    "ToiletPaperHanger": "paper hangs on the spec's bar",
+    "Bathtub": "no archive tub leaves the spec's basin free",
+}
 WOODS = ("wood_light", "wood_dark", "wood_red", "wood_grey")
+OWN_WOOD = ("Desk", "Dresser", "ShelvingUnit")  # the rest take the house's cabinet wood
 TOPS = {"CounterTop": "stone_top", "Sink": "stone_top"}
 METAL_PARTS = {(0.75, 0.77, 0.8): "steel", (0.25, 0.25, 0.27): "steel"}  # basin, handles
 
@@ -240,13 +249,18 @@ class RealisticLook:
         rel = pick(options, self.seed, f.id)
         return str(assets.path(rel)), model_scale(rel, f)
 
+    def dressing(self, type_name: str) -> tuple[str, RGB]:
+        """Texture and tint of a procedural piece; cabinets take the house's wood."""
+        name, tint = DRESSING.get(type_name, (self.wood, (1.0, 1.0, 1.0)))
+        if name in WOODS and type_name not in OWN_WOOD:
+            name = self.wood
+        return name, tint
+
     def part_material(self, f: Furniture, colour: RGB, link: bool = False):
         """A procedural part's material: the piece's texture, shaded as the part was."""
         if colour in METAL_PARTS:
             return textured(METAL_PARTS[colour], (0.85, 0.86, 0.9), roughness=0.35, metallic=0.6)
-        name, tint = DRESSING.get(f.type, (self.wood, (1.0, 1.0, 1.0)))
-        if name in WOODS and f.type not in ("Desk", "Dresser", "ShelvingUnit"):
-            name = self.wood
+        name, tint = self.dressing(f.type)
         base = furniture_colour(f.type)
         ratio = np.mean(colour) / max(np.mean(base), 1e-6)
         if ratio > 1.05 and f.type in TOPS:
