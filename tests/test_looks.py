@@ -367,3 +367,12 @@ def test_what_rests_on_a_model_stays_above_it():
             assert covered <= 0.1, (rel, s.name, covered)
             checked += 1
     assert checked >= 15
+
+
+def test_derive_assets_names_a_missing_source_before_writing_anything(tmp_path):
+    from maniskill_tidy.cli import main
+
+    out = tmp_path / "data"
+    assert main(["derive-assets", "--sh3d", str(tmp_path), "--out", str(out)]) == 2
+    assert main(["derive-assets", "--robosuite", str(tmp_path / "no.whl"), "--out", str(out)]) == 2
+    assert not out.exists() and not list(tmp_path.glob(".data*"))

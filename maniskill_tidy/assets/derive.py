@@ -230,6 +230,10 @@ class Derivation:
 
     def run(self, kinds: tuple[str, ...] = KINDS) -> dict:
         """Derive into a fresh folder, then swap it in: a failed run leaves the old set."""
+        for label, src in self.sources.items():  # every source there before any work
+            if src.get("archive", "").endswith(".sh3f"):
+                self.archive(label)
+        self.wheel = self.wheel or WheelFiles(self.robosuite)
         final, staged = self.out, self.only is None  # a partial run (tests) writes in place
         if staged:
             self.out = final.with_name(f".{final.name}.new")
@@ -237,16 +241,18 @@ class Derivation:
         try:
             for kind in kinds:
                 getattr(self, kind)()
-            if self.wheel is None:
-                self.wheel = WheelFiles(self.robosuite)
             mit = self.wheel.file("robosuite-1.5.2.dist-info/licenses/LICENSE").read_text()
             write_manifest(self.out, self.manifest)
             (self.out / "ATTRIBUTION.md").write_text(attribution(self.manifest, mit))
             if staged:
                 shutil.rmtree(final, ignore_errors=True)
                 self.out.replace(final)
-        finally:
+        finally:  # a failed run leaves neither its staging folder nor its temporary files
             shutil.rmtree(self.tmp, ignore_errors=True)
+            if self.wheel is not None:
+                shutil.rmtree(self.wheel.tmp, ignore_errors=True)
+            if staged:
+                shutil.rmtree(self.out, ignore_errors=True)
             self.out = final
         return self.manifest
 
