@@ -2,7 +2,7 @@
 PY := .venv/bin/python
 DEMO_DIR := out/demo
 
-.PHONY: setup test test-slow demo bench assets leaderboard train train-all lint clean
+.PHONY: setup test test-slow demo bench assets leaderboard leaderboard-v2 train train-all lint clean
 
 setup:
 	@bash scripts/setup.sh
@@ -59,6 +59,16 @@ leaderboard: setup
 	for s in $(LEADERBOARD_SETTINGS); do \
 	  for p in heuristic-none heuristic-detection heuristic-broadcast heuristic-central $(LEARNED); do \
 	    $(EVAL) --policy $$p --setting $$s || exit 1; done; done
+	$(PY) -m maniskill_tidy.cli leaderboard
+
+# The v2 rows (issue 46): the expert and two heuristic teams on HeteroTidy-v2, the same 200 test
+# episodes per setting; each is its own row (expert-v2, ...) and resumes if interrupted. The
+# experts took 6-7 min per setting on 2 cores; `compare` pairs each against its v1 run.
+V2_POLICIES ?= expert heuristic-none heuristic-broadcast
+leaderboard-v2: setup
+	test -f $(DATA120)/manifest.json || $(PY) -m maniskill_tidy.cli generate --houses 120 --seed 0 --workers 2 --out $(DATA120)
+	for s in $(LEADERBOARD_SETTINGS); do for p in $(V2_POLICIES); do \
+	  $(EVAL) --env HeteroTidy-v2 --policy $$p --setting $$s || exit 1; done; done
 	$(PY) -m maniskill_tidy.cli leaderboard
 
 # The paper's learned model, on CPU. Perception (issue 12): render the views of the 120-house
