@@ -32,7 +32,7 @@ from maniskill_tidy.assets.meshes import (
     load_obj,
     part_mesh,
 )
-from maniskill_tidy.assets.shapes import SHAPES
+from maniskill_tidy.assets.shapes import SHAPES, fit_into
 from maniskill_tidy.assets.sources import Sh3fArchive, WheelFiles
 from maniskill_tidy.houses.furniture import TEMPLATES, parts_for
 from maniskill_tidy.knowledge import load_catalog
@@ -330,12 +330,9 @@ def fit_object(parts: list, size: tuple[float, float, float]) -> None:
         if turn:
             m.vertices = m.vertices[:, [1, 0, 2]] * [-1, 1, 1]
             m.vertex_normals = m.vertex_normals[:, [1, 0, 2]] * [-1, 1, 1]
-    verts = np.concatenate([m.vertices for m, _ in parts])
-    lo, hi = verts.min(0), verts.max(0)
-    scale = np.asarray(size) / np.maximum(hi - lo, 1e-9)
-    offset = np.array([-size[0] / 2, -size[1] / 2, 0.0]) - lo * scale
+    scale = np.asarray(size) / np.maximum(ext[[1, 0, 2]] if turn else ext, 1e-9)
+    fit_into(parts, size)
     for m, _ in parts:
-        m.vertices = m.vertices * scale + offset
         n = m.vertex_normals / scale
         m.vertex_normals = n / np.linalg.norm(n, axis=1, keepdims=True).clip(1e-9)
 

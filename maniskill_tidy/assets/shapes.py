@@ -40,7 +40,8 @@ def _tint(image: Image.Image, rgb, strength: float = 1.0) -> Image.Image:
     return Image.fromarray((out * 255).clip(0, 255).astype(np.uint8))
 
 
-def _fit(parts: list[Part], size) -> list[Part]:
+def fit_into(parts: list[Part], size) -> list[Part]:
+    """Scale parts together into the box ``size`` (w, d, h), bottom centre at the origin."""
     verts = np.concatenate([m.vertices for m, _ in parts])
     lo, hi = verts.min(0), verts.max(0)
     scale = np.asarray(size) / np.maximum(hi - lo, 1e-9)
@@ -72,7 +73,7 @@ def _fruit(d, size, rgb, squash, stem_rgb, base="clay"):
     img, credit = _texture(d, base)
     body = _part(_sphere((1, 1, squash)), _tint(img, rgb))
     stem = _part(_cylinder(0.08, 0.25, squash * 0.9), None, stem_rgb)
-    return _fit([body, stem], size), [credit]
+    return fit_into([body, stem], size), [credit]
 
 
 def apple(d, size):
@@ -85,12 +86,13 @@ def tomato(d, size):
 
 def potato(d, size):
     img, credit = _texture(d, "dirt")
-    return _fit([_part(_sphere((1.3, 1, 0.8)), _tint(img, (0.75, 0.58, 0.38)))], size), [credit]
+    return fit_into([_part(_sphere((1.3, 1, 0.8)), _tint(img, (0.75, 0.58, 0.38)))], size), [credit]
 
 
 def egg(d, size):
     img, credit = _texture(d, "ceramic")
-    return _fit([_part(_sphere((1, 1, 1.35)), _tint(img, (1.0, 0.96, 0.88), 1.15))], size), [credit]
+    shell = _part(_sphere((1, 1, 1.35)), _tint(img, (1.0, 0.96, 0.88), 1.15))
+    return fit_into([shell], size), [credit]
 
 
 def lettuce(d, size):
@@ -99,7 +101,7 @@ def lettuce(d, size):
         _part(_sphere((1, 1, 0.9)), _tint(img, (0.45, 0.78, 0.3))),
         _part(_sphere((0.8, 0.9, 0.7), (0.3, 0.1, 0.35)), _tint(img, (0.55, 0.85, 0.35))),
     ]
-    return _fit(leaves, size), [credit]
+    return fit_into(leaves, size), [credit]
 
 
 def _roll(d, size, rgb, texture="white-plaster", hole=True):
@@ -107,7 +109,7 @@ def _roll(d, size, rgb, texture="white-plaster", hole=True):
     parts = [_part(_cylinder(1.0, 1.0, 0.0, 20), _tint(img, rgb))]
     if hole:
         parts.append(_part(_cylinder(0.3, 1.01, -0.005, 12), None, (0.55, 0.45, 0.32)))
-    return _fit(parts, size), [credit]
+    return fit_into(parts, size), [credit]
 
 
 def toilet_paper(d, size):
@@ -124,7 +126,7 @@ def foil(d, size):
     roll = _part(_cylinder(1.0, 6.0, 0.0, 16, axis="x"), _tint(img, (0.85, 0.86, 0.9)))
     box = _part(trimesh.creation.box((6.2, 2.2, 1.2)), _tint(box_img, (0.2, 0.35, 0.7)))
     box[0].vertices += [3.0, 0, 1.5]
-    return _fit([roll, box], size), [credit]
+    return fit_into([roll, box], size), [credit]
 
 
 def bat(d, size):
@@ -132,7 +134,7 @@ def bat(d, size):
     body = _cylinder(1.0, 10.0, 2.0, 16)
     body.vertices[:, :2] *= 0.45 + 0.55 * ((body.vertices[:, 2:3] - 2.0) / 10.0)  # tapered
     handle = _part(_cylinder(0.45, 2.0, 0.0, 12), None, (0.15, 0.12, 0.1))
-    return _fit([_part(body, _tint(img, (0.85, 0.68, 0.45))), handle], size), [credit]
+    return fit_into([_part(body, _tint(img, (0.85, 0.68, 0.45))), handle], size), [credit]
 
 
 def _flat_image(draw_fn, size=(128, 128), bg=(200, 200, 200)) -> Image.Image:
@@ -153,7 +155,7 @@ def cd(d, size):
     m, look = disc
     look["uv"] = (m.vertices[:, :2] + 1) / 2  # planar: the image seen from above
     hole = _part(_cylinder(0.15, 0.052, -0.001, 12), None, (0.9, 0.9, 0.92))
-    return _fit([disc, hole], size), [{"source": "maniskill-tidy", "licence": "Apache-2.0"}]
+    return fit_into([disc, hole], size), [{"source": "maniskill-tidy", "licence": "Apache-2.0"}]
 
 
 def card(d, size):
@@ -166,7 +168,7 @@ def card(d, size):
     m = trimesh.creation.box((1.0, 1.0, 0.02))
     part = _part(m, _flat_image(face))
     part[1]["uv"] = m.vertices[:, :2] + 0.5
-    return _fit([part], size), [{"source": "maniskill-tidy", "licence": "Apache-2.0"}]
+    return fit_into([part], size), [{"source": "maniskill-tidy", "licence": "Apache-2.0"}]
 
 
 def dumbbell(d, size):
@@ -177,7 +179,7 @@ def dumbbell(d, size):
         p = _part(_cylinder(1.0, 1.0, 0.0, 8, axis="x"), grey)  # octagonal plates
         p[0].vertices[:, 0] += x
         parts.append(p)
-    parts = _fit(parts, (size[1], size[0], size[2]) if size[0] < size[1] else size)
+    parts = fit_into(parts, (size[1], size[0], size[2]) if size[0] < size[1] else size)
     if size[0] < size[1]:
         for m, _ in parts:
             m.vertices = m.vertices[:, [1, 0, 2]]
@@ -190,14 +192,14 @@ def pillow(d, size):
     v = body.vertices
     v[:, :2] = np.sign(v[:, :2]) * np.abs(v[:, :2]) ** 0.45  # a cushion: square, puffy
     v[:, 2] *= 0.35 + 0.65 * (1 - np.abs(v[:, 0]) ** 4) * (1 - np.abs(v[:, 1]) ** 4)
-    return _fit([_part(body, _tint(img, (0.85, 0.82, 0.9)))], size), [credit]
+    return fit_into([_part(body, _tint(img, (0.85, 0.82, 0.9)))], size), [credit]
 
 
 def soap(d, size):
     img, credit = _texture(d, "ceramic")
     body = _sphere((1.6, 1.0, 0.6))
     body.vertices[:, :2] = np.sign(body.vertices[:, :2]) * np.abs(body.vertices[:, :2]) ** 0.8
-    return _fit([_part(body, _tint(img, (0.95, 0.72, 0.8)))], size), [credit]
+    return fit_into([_part(body, _tint(img, (0.95, 0.72, 0.8)))], size), [credit]
 
 
 def plunger(d, size):
@@ -208,7 +210,7 @@ def plunger(d, size):
         _part(cup, None, (0.6, 0.08, 0.08)),
         _part(_cylinder(0.15, 5.0, 0.6, 10), _tint(wood, (0.8, 0.6, 0.4))),
     ]
-    return _fit(parts, size), [credit]
+    return fit_into(parts, size), [credit]
 
 
 def watering_can(d, size):
@@ -223,7 +225,7 @@ def watering_can(d, size):
     handle = trimesh.creation.box((1.2, 0.15, 0.15))
     handle.vertices += [-0.2, 0, 2.0]
     parts = [body, _part(spout, green), _part(handle, green)]
-    return _fit(parts, size), [credit]
+    return fit_into(parts, size), [credit]
 
 
 SHAPES: dict[str, Callable] = {

@@ -19,15 +19,19 @@ from maniskill_tidy.envs.hetero_tidy import HeteroTidyEnv
 NAV_ONLY = [a.value for a in Action if a.value < Action.Stop]  # keeps every agent going
 
 
-def raw_render_loop(env: HeteroTidyEnv, frames: int) -> float:
-    """Frames (all agent cameras) per second of plain SAPIEN on the env's scene."""
+def raw_render_loop(env: HeteroTidyEnv, frames: int, hide: bool = False) -> float:
+    """Frames (all agent cameras) per second of plain SAPIEN on the env's scene; ``hide``:
+    each camera with the rooms it cannot see hidden, as the v2 env does."""
     scene = env.scene.sub_scenes[0]
     cams = [env._sensors[name].camera._render_cameras[0] for name in env.agent_names]
     start = time.perf_counter()
     for _ in range(frames):
         scene.update_render()
+        if hide:
+            env._take_pictures(env.agent_names)
         for cam in cams:
-            cam.take_picture()
+            if not hide:
+                cam.take_picture()
             cam.get_picture("Color")
             cam.get_picture("PositionSegmentation")
     return frames / (time.perf_counter() - start)
