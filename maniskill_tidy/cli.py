@@ -480,8 +480,8 @@ def _derive_assets(args: argparse.Namespace) -> int:
 
 
 def _derive_word_vectors(args: argparse.Namespace) -> int:
+    from maniskill_tidy.common.files import write_atomic
     from maniskill_tidy.knowledge.word_vectors import derive_word_vectors
-    from maniskill_tidy.tasks.dataset import write_atomic
 
     out = Path(args.out or Path(__file__).parent / "knowledge" / "data" / "word_vectors.json")
     table = derive_word_vectors(Path(args.source))
@@ -835,8 +835,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from maniskill_tidy.common.parallel import JobError, WorkerLostError
     from maniskill_tidy.houses.procthor import ProcTHORImportError
-    from maniskill_tidy.parallel import JobError, WorkerLostError
     from maniskill_tidy.tasks.dataset import DatasetError
 
     bad_input = (DatasetError, ProcTHORImportError, ValueError, KeyError, OSError)
@@ -844,7 +844,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         if getattr(args, "ray", None):  # before anything is written
-            from maniskill_tidy.parallel import check_ray
+            from maniskill_tidy.common.parallel import check_ray
 
             check_ray(args.ray)
         return args.func(args)

@@ -140,7 +140,7 @@ def test_a_job_that_kills_its_workers_ends_the_command_in_one_line_with_status_1
     tmp_path, monkeypatch, capsys
 ):
     from maniskill_tidy import cli as cli_module
-    from maniskill_tidy.parallel import WorkerLostError
+    from maniskill_tidy.common.parallel import WorkerLostError
 
     def lose_workers(args):
         raise WorkerLostError("job 'h007' lost 3 Ray workers in a row; stopping")

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from maniskill_tidy.parallel import JobError, run_jobs
+from maniskill_tidy.common.parallel import JobError, run_jobs
 
 
 def lookup_or_fail(job: tuple[str, int]) -> int:

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from maniskill_tidy.common.files import write_atomic
 from maniskill_tidy.houses.furnish import overlaps
 from maniskill_tidy.houses.generator import house_rng
 from maniskill_tidy.houses.navgrid import blocks_navigation
@@ -24,7 +25,6 @@ from maniskill_tidy.tasks.dataset import (
     dumps_gz,
     load_dataset,
     read_shard,
-    write_atomic,
     write_manifest,
 )
 from maniskill_tidy.tasks.procthor_dataset import REPAIR_STREAM

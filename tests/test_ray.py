@@ -13,8 +13,8 @@ from pathlib import Path
 
 import pytest
 
+from maniskill_tidy.common.parallel import MAX_ATTEMPTS, run_jobs, start_ray
 from maniskill_tidy.eval.runner import RunConfig, evaluate
-from maniskill_tidy.parallel import MAX_ATTEMPTS, run_jobs, start_ray
 from tests.test_cli_errors import cli, one_line_error
 
 TAIL = "eval/results/setting_I/expert/episodes.jsonl"
@@ -159,7 +159,7 @@ def test_a_job_that_kills_every_worker_stops_the_run_with_its_name(local_ray):
 
 
 def test_a_job_that_raises_on_an_actor_stops_the_run_with_its_name_and_cause(local_ray):
-    from maniskill_tidy.parallel import JobError
+    from maniskill_tidy.common.parallel import JobError
 
     def stale_id(x: int) -> int:
         return {0: 0}[x]

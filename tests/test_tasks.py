@@ -5,6 +5,7 @@ import shutil
 import pytest
 
 from maniskill_tidy.cli import main
+from maniskill_tidy.common.files import sha256
 from maniskill_tidy.houses.generator import generate_house
 from maniskill_tidy.knowledge import FLOOR, load_placement
 from maniskill_tidy.tasks.dataset import (
@@ -12,7 +13,6 @@ from maniskill_tidy.tasks.dataset import (
     dumps_gz,
     generate_dataset,
     load_dataset,
-    sha256,
     write_manifest,
 )
 from maniskill_tidy.tasks.metatask import (

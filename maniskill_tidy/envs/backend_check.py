@@ -82,7 +82,7 @@ def _serve_twin(conn, backend: str, kwargs: dict) -> None:
     import gymnasium as gym
 
     import maniskill_tidy  # noqa: F401  (registers the env)
-    from maniskill_tidy.parallel import die_with_parent
+    from maniskill_tidy.common.parallel import die_with_parent
 
     die_with_parent()
     env = gym.make("HeteroTidy-v1", render_backend=backend, **kwargs)

@@ -360,7 +360,7 @@ def plot(runs_by_setting: dict[str, dict[str, dict]], reference: dict, out: Path
     import matplotlib.pyplot as plt
     from adjustText import adjust_text
 
-    from maniskill_tidy.plotting import save_figure
+    from maniskill_tidy.common.plotting import save_figure
 
     settings = sorted(runs_by_setting) or ["I"]
     fig, axes = plt.subplots(1, len(settings), figsize=(6 * len(settings), 4.2), squeeze=False)
@@ -418,7 +418,7 @@ FULL_PROTOCOL = Path("all") / "eval"  # under the leaderboard's root: eval --out
 
 
 def write_leaderboard(root: Path = Path("eval")) -> Path:
-    from maniskill_tidy.tasks.dataset import write_atomic
+    from maniskill_tidy.common.files import write_atomic
 
     root = Path(root)
     runs = collect(root)

@@ -257,7 +257,7 @@ def draw_report(results: dict[str, dict], path: Path) -> None:
 
 
 def write_json(path: Path, payload: dict) -> None:
-    from maniskill_tidy.tasks.dataset import write_atomic
+    from maniskill_tidy.common.files import write_atomic
 
     write_atomic(path, json.dumps(payload, indent=1, sort_keys=True).encode())
 
@@ -308,7 +308,7 @@ def report(agents: Path, dataset: Path, split: str, work: Path, workers: int = 2
         f"\nAgents: code {card['code_version']}, dataset {card['dataset_hash'][:12]}, views "
         f"{card['views_hash'][:12]}, seed {card['seed']}.\n"
     )
-    from maniskill_tidy.tasks.dataset import write_atomic
+    from maniskill_tidy.common.files import write_atomic
 
     write_atomic(agents / f"{split.upper()}.md", (table + note).encode())
     write_json(agents / f"{split}_metrics.json", results)

@@ -18,7 +18,6 @@ from __future__ import annotations
 import fcntl
 import json
 import os
-import subprocess
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass, fields
@@ -27,12 +26,13 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from maniskill_tidy.common.files import write_atomic
+from maniskill_tidy.common.parallel import run_jobs
+from maniskill_tidy.common.provenance import code_version
 from maniskill_tidy.eval.episode import play_episode
 from maniskill_tidy.eval.metrics import EpisodeRecord, summarize
-from maniskill_tidy.parallel import run_jobs
 from maniskill_tidy.policies import make_team, team_class
 from maniskill_tidy.policies.channel import CENTRAL
-from maniskill_tidy.tasks.dataset import write_atomic
 
 RECORD_MODES = ("none", "failures", "all")
 ALL_IMAGES = "rgb+depth+segmentation"
@@ -77,26 +77,6 @@ def run_name(cfg: RunConfig) -> str:
 
 def run_dir(out: Path, cfg: RunConfig) -> Path:
     return Path(out) / "eval" / "results" / f"setting_{cfg.setting}" / run_name(cfg)
-
-
-def code_version() -> str:
-    """The commit, with "-dirty" if the package's tracked files differ from it (result files
-    elsewhere in the checkout, such as eval/results, do not count)."""
-    package = Path(__file__).resolve().parents[1]
-
-    def git(*args: str) -> str:
-        return subprocess.run(
-            ["git", "-C", str(package), *args], capture_output=True, text=True, check=True
-        ).stdout.strip()
-
-    try:
-        rev = git("rev-parse", "--short", "HEAD")
-        changed = git("status", "--porcelain", "--untracked-files=no", "--", str(package))
-        return (rev + "-dirty" if changed else rev) or "unknown"
-    except (OSError, subprocess.CalledProcessError):
-        from importlib.metadata import version
-
-        return f"maniskill-tidy {version('maniskill-tidy')}"
 
 
 # ---------------------------------------------------------------------- one episode
@@ -240,7 +220,7 @@ def evaluate(
     """Run (or resume) an evaluation and write its summary; returns the summary.
 
     ``ray``: play the episodes on Ray actors ("local" or a cluster's address, see
-    :mod:`maniskill_tidy.parallel`) instead of ``workers`` local processes."""
+    :mod:`maniskill_tidy.common.parallel`) instead of ``workers`` local processes."""
     team_cls = team_class(cfg.policy)  # a one-line error for an unknown policy
     if record not in RECORD_MODES:
         raise ValueError(f"--record must be one of {RECORD_MODES}, got {record!r}")

@@ -7,9 +7,9 @@ from pathlib import Path
 
 from matplotlib.patches import Patch, Polygon, Rectangle
 
+from maniskill_tidy.common.plotting import plt, save_figure
 from maniskill_tidy.houses.navgrid import grid_array, solid_wall_segments
 from maniskill_tidy.houses.schema import House
-from maniskill_tidy.plotting import plt, save_figure
 
 ROOM_COLORS = {
     "Kitchen": "#f6d5a8",

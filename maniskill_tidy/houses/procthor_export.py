@@ -19,10 +19,10 @@ from collections import Counter
 from functools import cache
 from pathlib import Path
 
+from maniskill_tidy.common.files import write_atomic
 from maniskill_tidy.houses.schema import Furniture, House, PlacedObject
 from maniskill_tidy.knowledge import FLOOR
 from maniskill_tidy.knowledge.catalog import load_assets
-from maniskill_tidy.tasks.dataset import write_atomic
 
 ON_LEFT_OUT = "(on a piece left out)"
 

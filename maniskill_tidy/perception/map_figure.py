@@ -90,7 +90,7 @@ def draw_map(
     import matplotlib.patches as mpatches
     import matplotlib.pyplot as plt
 
-    from maniskill_tidy.plotting import save_figure
+    from maniskill_tidy.common.plotting import save_figure
 
     td = semantic.top_down()
     frame = semantic.frame

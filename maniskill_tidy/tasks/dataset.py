@@ -14,19 +14,18 @@ Shards are written atomically; a rerun with the same arguments keeps finished sh
 from __future__ import annotations
 
 import gzip
-import hashlib
 import io
 import json
-import os
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 from tqdm import tqdm
 
+from maniskill_tidy.common.files import sha256, write_atomic
+from maniskill_tidy.common.parallel import run_jobs
 from maniskill_tidy.houses.generator import generate_house
 from maniskill_tidy.houses.schema import SCHEMA_VERSION, House, house_from_dict
-from maniskill_tidy.parallel import run_jobs
 from maniskill_tidy.tasks.metatask import (
     SINGLE_FRACTION,
     MetaTask,
@@ -60,17 +59,6 @@ def dumps_gz(payload: dict) -> bytes:
     with gzip.GzipFile(filename="", mode="wb", fileobj=buf, mtime=0, compresslevel=6) as f:
         f.write(raw)
     return buf.getvalue()
-
-
-def write_atomic(path: Path, data: bytes) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    tmp.write_bytes(data)
-    tmp.replace(path)
-
-
-def sha256(data: bytes) -> str:
-    return hashlib.sha256(data).hexdigest()
 
 
 def _make_shard(args: tuple[int, str, int, int, float]) -> tuple[str, int, int, bytes]:
@@ -109,7 +97,7 @@ def generate_dataset(
     """Generate (or resume) a dataset in ``out``; returns the manifest.
 
     ``single_fraction``: the share of meta-tasks meant to be Single (default the paper's);
-    ``ray``: build the shards on Ray actors (see :mod:`maniskill_tidy.parallel`)."""
+    ``ray``: build the shards on Ray actors (see :mod:`maniskill_tidy.common.parallel`)."""
     out = Path(out)
     if n_houses < 1:
         raise ValueError(f"--houses must be at least 1, got {n_houses}")

@@ -17,11 +17,11 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from maniskill_tidy.common.parallel import run_jobs
 from maniskill_tidy.houses.generator import house_rng
 from maniskill_tidy.houses.procthor import read_procthor_houses
 from maniskill_tidy.houses.repair import HouseRejected, make_sound
 from maniskill_tidy.houses.schema import SCHEMA_VERSION, house_from_dict
-from maniskill_tidy.parallel import run_jobs
 from maniskill_tidy.tasks.dataset import (
     SHARD_SIZE,
     SPLITS,
@@ -93,7 +93,7 @@ def generate_procthor_dataset(
 ) -> dict:
     """Build a dataset in ``out`` from the ProcTHOR houses of ``source`` (at most ``limit``
     of them, from the top of the file); returns the manifest. ``ray``: on Ray actors (see
-    :mod:`maniskill_tidy.parallel`)."""
+    :mod:`maniskill_tidy.common.parallel`)."""
     source, out = Path(source), Path(out)
     if not source.is_file():
         raise FileNotFoundError(f"--procthor {source}: no such ProcTHOR house file")

@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections import Counter
 from pathlib import Path
 
-from maniskill_tidy.plotting import plt, save_figure
+from maniskill_tidy.common.plotting import plt, save_figure
 from maniskill_tidy.tasks.dataset import SPLITS, read_manifest, read_shard
 
 

@@ -12,6 +12,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from maniskill_tidy.common.files import sha256
 from maniskill_tidy.houses.furnish import overlaps
 from maniskill_tidy.houses.navgrid import (
     REACH,
@@ -37,7 +38,6 @@ from maniskill_tidy.tasks.dataset import (
     DatasetError,
     read_manifest,
     read_shard,
-    sha256,
 )
 from maniskill_tidy.tasks.metatask import MetaTask, findable, label, reasonable_surfaces
 from maniskill_tidy.tasks.starts import ROTATIONS

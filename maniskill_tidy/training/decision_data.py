@@ -51,12 +51,12 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from maniskill_tidy.common.files import write_atomic
 from maniskill_tidy.envs.actions import Action, Targeted
 from maniskill_tidy.knowledge import ROOM_TYPES, load_catalog
 from maniskill_tidy.perception.frame_inputs import DETECTION_NUMERIC, IMAGE, FrameReader
 from maniskill_tidy.perception.semantic_map import WIDE_SIZE
 from maniskill_tidy.policies.base import OPERATIONS, PLACE
-from maniskill_tidy.tasks.dataset import write_atomic
 from maniskill_tidy.tasks.teams import team as parse_team
 from maniskill_tidy.training.house_jobs import (
     check_same_config,
@@ -291,7 +291,7 @@ def build_demo_features(
     import gymnasium as gym
 
     import maniskill_tidy  # noqa: F401
-    from maniskill_tidy.eval.runner import code_version
+    from maniskill_tidy.common.provenance import code_version
     from maniskill_tidy.policies import POLICIES
 
     if cfg.starts < 1 or (cfg.tasks is not None and cfg.tasks < 1):

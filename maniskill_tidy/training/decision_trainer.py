@@ -35,6 +35,7 @@ import yaml
 from scipy.stats import rankdata
 from tqdm import tqdm
 
+from maniskill_tidy.common.files import write_atomic
 from maniskill_tidy.knowledge import ROOM_TYPES, load_catalog
 from maniskill_tidy.models.communication import SCHEMES, TASK
 from maniskill_tidy.models.decision import (
@@ -47,7 +48,6 @@ from maniskill_tidy.models.decision import (
     suspects,
 )
 from maniskill_tidy.policies.base import OPERATIONS
-from maniskill_tidy.tasks.dataset import write_atomic
 from maniskill_tidy.tasks.teams import SETTINGS
 from maniskill_tidy.training.decision_data import DemoConfig, build_demo_features
 
@@ -469,7 +469,7 @@ def fit(
             state = saved["state"]
     bar = tqdm(total=s.epochs, initial=state["epoch"], desc="behaviour cloning", unit="epoch",
                disable=not progress)  # fmt: skip
-    from maniskill_tidy.eval.runner import code_version
+    from maniskill_tidy.common.provenance import code_version
 
     while state["epoch"] < s.epochs and state["epoch"] - state["best_epoch"] < s.patience:
         started = time.perf_counter()
@@ -540,7 +540,7 @@ def demos_folder(cfg: AgentConfig, setting: str, split: str) -> Path:
 
 def train_decision(config: Path, setting: str, progress: bool = True) -> dict:
     """Demos (if missing), features, behaviour cloning and the model card; returns the card."""
-    from maniskill_tidy.eval.runner import code_version
+    from maniskill_tidy.common.provenance import code_version
 
     cfg = AgentConfig.load(config)
     if setting not in SETTINGS:

@@ -35,8 +35,8 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from maniskill_tidy.common.files import write_atomic
 from maniskill_tidy.envs.actions import Action, Targeted
-from maniskill_tidy.tasks.dataset import write_atomic
 
 FORMAT_VERSION = 1
 
@@ -109,7 +109,7 @@ def write_demonstrations(
     import gymnasium as gym
 
     import maniskill_tidy  # noqa: F401
-    from maniskill_tidy.eval.runner import code_version
+    from maniskill_tidy.common.provenance import code_version
     from maniskill_tidy.policies.expert import ExpertTeam
 
     env = gym.make(

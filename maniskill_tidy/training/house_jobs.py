@@ -1,5 +1,5 @@
 """Rendering work split by house: one shard per house, written atomically, a rerun skips the
-finished ones; the workers of :mod:`maniskill_tidy.parallel` (SAPIEN allows one renderer per
+finished ones; the workers of :mod:`maniskill_tidy.common.parallel` (SAPIEN allows one renderer per
 process, so each worker builds its env once); one hash over the shards for the manifest."""
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from maniskill_tidy.parallel import run_jobs
-from maniskill_tidy.tasks.dataset import write_atomic
+from maniskill_tidy.common.files import write_atomic
+from maniskill_tidy.common.parallel import run_jobs
 
 
 def worker_env(dataset: str | None, setting: str, split: str, env_id: str = "HeteroTidy-v1"):
@@ -44,7 +44,7 @@ def run_house_jobs(
     ray: str | None = None,
 ) -> float:
     """Run ``work(job)`` for every job (in ``workers`` processes or Ray actors, each set up by
-    ``init``; see :mod:`maniskill_tidy.parallel`) and write the ``(path, bytes)`` it returns
+    ``init``; see :mod:`maniskill_tidy.common.parallel`) and write the ``(path, bytes)`` it returns
     atomically, here; returns the wall time in seconds."""
     started = time.perf_counter()
     with bar:  # closed on an error too, so the error starts a line of its own

@@ -37,11 +37,11 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from maniskill_tidy.common.files import write_atomic
 from maniskill_tidy.houses.schema import House
 from maniskill_tidy.knowledge import ROOM_TYPES, load_catalog, load_placement
 from maniskill_tidy.perception.frame_inputs import DETECTION_NUMERIC, IMAGE, FrameReader
 from maniskill_tidy.perception.semantic_map import SemanticMap
-from maniskill_tidy.tasks.dataset import write_atomic
 from maniskill_tidy.training.house_jobs import (
     check_same_config,
     run_house_jobs,
@@ -239,7 +239,7 @@ def build_views(
     import gymnasium as gym
 
     import maniskill_tidy  # noqa: F401
-    from maniskill_tidy.eval.runner import code_version
+    from maniskill_tidy.common.provenance import code_version
 
     probe = gym.make(cfg.env, dataset=dataset, split=cfg.split, obs_mode="none")
     episodes = probe.unwrapped.episodes

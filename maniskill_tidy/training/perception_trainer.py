@@ -30,6 +30,7 @@ import torch
 import torch.nn.functional as F  # noqa: N812
 from tqdm import tqdm
 
+from maniskill_tidy.common.files import write_atomic
 from maniskill_tidy.eval.perception_report import (
     compute_priors,
     draw_curves,
@@ -39,7 +40,6 @@ from maniskill_tidy.knowledge import load_catalog
 from maniskill_tidy.knowledge.word_vectors import load_word_vectors
 from maniskill_tidy.models.knowledge_graph import build_graph
 from maniskill_tidy.models.perception import PerceptionConfig, PerceptionModel
-from maniskill_tidy.tasks.dataset import write_atomic
 from maniskill_tidy.training.perception_data import REGIONS, ViewsConfig, build_views, load_views
 
 VARIANTS = {"knowledge": True, "no-knowledge": False}  # sub-folder of the agent folder
@@ -298,7 +298,7 @@ def train_perception(
     progress: bool = True,
 ) -> dict[str, dict]:
     """Build the views, train every stage and both variants; returns each variant's card."""
-    from maniskill_tidy.eval.runner import code_version
+    from maniskill_tidy.common.provenance import code_version
     from maniskill_tidy.tasks.dataset import load_dataset
 
     cfg = cfg or TrainConfig()

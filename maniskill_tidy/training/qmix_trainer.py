@@ -34,8 +34,8 @@ import torch
 import yaml
 from tqdm import tqdm
 
+from maniskill_tidy.common.files import write_atomic
 from maniskill_tidy.models.qmix import OBS, QmixTeamModel
-from maniskill_tidy.tasks.dataset import write_atomic
 from maniskill_tidy.tasks.teams import SETTINGS
 
 
@@ -183,8 +183,9 @@ def load_qmix(folder: Path) -> tuple[QmixTeamModel, dict]:
 def train_qmix(config: Path, setting: str, progress: bool = True, env=None) -> dict:
     """Train (resumable), then write the model, its card and learning curve; returns the card.
     ``env``: a train-split env of the setting to reuse (made from the config when None)."""
+    from maniskill_tidy.common.provenance import code_version
     from maniskill_tidy.eval.episode import play_episode
-    from maniskill_tidy.eval.runner import RunConfig, code_version, make_env
+    from maniskill_tidy.eval.runner import RunConfig, make_env
     from maniskill_tidy.policies.qmix_team import QmixTeam, Steps
     from maniskill_tidy.training.perception_trainer import load_agent
 
@@ -346,7 +347,7 @@ def qmix_card(card: dict) -> str:
 def plot_curve(card: dict, out: Path) -> Path:
     import matplotlib.pyplot as plt
 
-    from maniskill_tidy.plotting import save_figure
+    from maniskill_tidy.common.plotting import save_figure
 
     curve = card["curve"]
     x = [c["env_steps"] for c in curve]
