@@ -2,13 +2,14 @@
 PY := .venv/bin/python
 DEMO_DIR := out/demo
 
-.PHONY: setup test test-slow demo bench assets leaderboard leaderboard-v2 train train-all lint clean
+.PHONY: setup test test-slow demo bench assets leaderboard leaderboard-v2 train train-all lint docs clean
 
 setup:
 	@bash scripts/setup.sh
 
 test: setup
 	$(PY) -m pytest -q
+	$(MAKE) --no-print-directory docs
 
 test-slow: setup
 	$(PY) -m pytest -q -m slow
@@ -103,6 +104,11 @@ train-all: setup
 
 lint: setup
 	$(PY) -m ruff check maniskill_tidy tests
+
+# The docs site (Sphinx + MyST) under docs/; any warning fails the build.
+docs: setup
+	$(PY) -m sphinx -W --keep-going -q -b html docs docs/_build/html
+	@echo "docs: docs/_build/html/index.html"
 
 clean:
 	rm -rf out .pytest_cache

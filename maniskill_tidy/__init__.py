@@ -9,21 +9,9 @@ from __future__ import annotations
 
 from typing import Any
 
-ENV_ID = "HeteroTidy-v1"
-ENV_V2 = "HeteroTidy-v2"
-ENTRY_POINT = "maniskill_tidy.envs.hetero_tidy:HeteroTidyEnv"
-# An env version is a look: v1 draws flat-coloured primitives, v2 the derived meshes and
-# materials (sim/realistic.py). The task, the grid and the segmentation ids are the same.
-VERSIONS = {ENV_ID: "flat", ENV_V2: "realistic"}
+from maniskill_tidy.envs.registration import ENV_ID, ENV_V2, VERSIONS, register_gym
 
-
-def register_gym() -> None:
-    """(Re-)register both versions with gymnasium; truncation is the env's own (300 steps)."""
-    import gymnasium as gym
-
-    for env_id, visuals in VERSIONS.items():
-        gym.registry.pop(env_id, None)
-        gym.register(env_id, entry_point=ENTRY_POINT, kwargs={"visuals": visuals})
+__all__ = ["ENV_ID", "ENV_V2", "VERSIONS", "parallel_env", "register_gym"]
 
 
 def parallel_env(**kwargs: Any):

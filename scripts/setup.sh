@@ -36,10 +36,10 @@ fi
 [ -x "$VENV/bin/python" ] || python3 -m venv "$VENV"
 stamp="$VENV/.installed-$(cat pyproject.toml constraints.txt | sha1sum | cut -c1-12)"
 if [ ! -f "$stamp" ]; then
-  echo "[setup] pip install -e .[dev,ray] (constraints.txt pins the CPU torch)"
+  echo "[setup] pip install -e .[dev,docs,ray] (constraints.txt pins the CPU torch)"
   "$VENV/bin/pip" install -q --upgrade pip
   # pipefail keeps pip's exit status; the filter only drops this machine's local-index notices.
-  "$VENV/bin/pip" install -q -c constraints.txt -e ".[dev,ray]" 2>&1 \
+  "$VENV/bin/pip" install -q -c constraints.txt -e ".[dev,docs,ray]" 2>&1 \
     | { grep -v -e "is ignored: it is neither a file nor a directory" || true; }
   rm -f "$VENV"/.installed-*
   touch "$stamp"

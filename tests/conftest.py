@@ -23,8 +23,9 @@ def _seeded_config(
     learned team's mechanics (perception, messages, executor), not what training taught it."""
     import torch
 
+    from maniskill_tidy.models.checkpoints import save_decision
     from maniskill_tidy.models.decision import TeamDecision
-    from maniskill_tidy.training.decision_trainer import AgentConfig, save_model
+    from maniskill_tidy.policies.agent_config import AgentConfig
 
     config = root / f"{name}.yaml"
     config.write_text(
@@ -34,7 +35,7 @@ def _seeded_config(
     cfg = AgentConfig.load(config)
     for setting, agents in settings:
         torch.manual_seed(0)
-        save_model(TeamDecision(cfg.decision(), agents), root / name / f"setting_{setting}", {})
+        save_decision(TeamDecision(cfg.decision(), agents), root / name / f"setting_{setting}", {})
     return config
 
 
@@ -57,8 +58,8 @@ def qmix_config(tmp_path_factory) -> Path:
     """A QMIX config whose Q-networks (Settings I and II) are freshly initialised from a seed."""
     import torch
 
+    from maniskill_tidy.models.checkpoints import save_qmix
     from maniskill_tidy.models.qmix import QmixTeamModel
-    from maniskill_tidy.training.qmix_trainer import save_qmix
 
     root = tmp_path_factory.mktemp("qmix")
     config = root / "qmix.yaml"

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from maniskill_tidy.envs.backend_check import BackendComparison, TwinObserver, compare_backends
 from maniskill_tidy.envs.hetero_tidy import default_render_backend
+from maniskill_tidy.eval.backend_check import BackendComparison, TwinObserver, compare_backends
 from tests.test_cli_errors import cli, one_line_error
 
 
@@ -64,7 +64,7 @@ def test_check_render_without_a_gpu_says_so_in_one_line():
 
 def test_a_trace_replayed_on_the_same_backend_agrees_and_a_changed_one_does_not(tmp_path):
     """The cross-machine path (`check-render --save` here, `--against` there), on lavapipe."""
-    from maniskill_tidy.envs.backend_check import compare_with_trace, record_trace
+    from maniskill_tidy.eval.backend_check import compare_with_trace, record_trace
 
     meta = record_trace(tmp_path, "cpu", episodes=1, progress=False)
     same = compare_with_trace(tmp_path, "cpu", progress=False).summary()

@@ -145,7 +145,7 @@ def test_a_job_that_kills_its_workers_ends_the_command_in_one_line_with_status_1
     def lose_workers(args):
         raise WorkerLostError("job 'h007' lost 3 Ray workers in a row; stopping")
 
-    monkeypatch.setattr(cli_module, "_generate", lose_workers)
+    monkeypatch.setattr(cli_module.dataset, "_generate", lose_workers)
     status = cli_module.main(["generate", "--houses", "2", "--out", str(tmp_path / "ds")])
     lines = capsys.readouterr().err.strip().splitlines()
     assert status == 1
@@ -231,3 +231,37 @@ def test_compare_prints_objects_placed_and_failed_actions_of_both_runs(tmp_path)
     totals = {ln.split()[0]: ln.split()[1:] for ln in p.stdout.splitlines()[-2:]}
     assert totals["A"] == ["3", "/", "4", "5.0", "of", "30"]
     assert totals["B"] == ["1", "/", "4", "0.5", "of", "30"]
+
+
+@pytest.mark.parametrize("card", ["with", "without"])
+def test_eval_refuses_a_damaged_checkpoint_before_writing(tmp_path, card):
+    """A truncated model.pt: with its card, its sha256 differs; without, torch cannot read it.
+    Either way one line, status 2, and no run folder."""
+    repo = Path(__file__).resolve().parents[1]
+    agent = tmp_path / "agent"
+    shutil.copytree(repo / "agents" / "hangrcom" / "setting_I", agent / "setting_I")
+    weights = agent / "setting_I" / "model.pt"
+    weights.write_bytes(weights.read_bytes()[:4096])
+    if card == "without":
+        (agent / "setting_I" / "card.json").unlink()
+    config = tmp_path / "damaged.yaml"
+    config.write_text(f"base: {repo / 'agents' / 'hangrcom.yaml'}\nname: damaged\nout: {agent}\n")
+    out = tmp_path / "out"
+    p = cli("eval", "--policy", str(config), "--setting", "I", "--episodes", "1", "--out", str(out))
+    words = ("sha256", "retrain") if card == "with" else ("not a readable checkpoint",)
+    one_line_error(p, str(weights), *words)
+    assert not out.exists()
+
+
+def test_leaderboard_refuses_a_root_without_runs(tmp_path):
+    root = tmp_path / "nonexistent"
+    one_line_error(cli("leaderboard", "--root", str(root)), str(root), "no eval runs")
+    assert not root.exists()
+
+
+@pytest.mark.parametrize("command", [["eval", "--policy", "random"], ["generate", "--houses", "1"]])
+def test_workers_below_one_are_refused(tmp_path, command):
+    out = tmp_path / "out"
+    p = cli(*command, "--workers", "0", "--out", str(out))
+    one_line_error(p, "--workers 0", "at least 1")
+    assert not out.exists()

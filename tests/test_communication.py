@@ -11,12 +11,14 @@ import torch
 
 from maniskill_tidy.eval.episode import play_episode
 from maniskill_tidy.eval.runner import RunConfig, make_env
-from maniskill_tidy.models.communication import MISPLACED, SCHEMES, auxiliary_loss, exchange
+from maniskill_tidy.models.communication import SCHEMES
+from maniskill_tidy.models.communication.base import exchange
+from maniskill_tidy.models.communication.cond import MISPLACED
 from maniskill_tidy.models.decision import DecisionConfig, TeamDecision
 from maniskill_tidy.policies import make_team
+from maniskill_tidy.policies.agent_config import AgentConfig
 from maniskill_tidy.policies.channel import CENTRAL, Channel, Outbox
 from maniskill_tidy.policies.message_exchange import LearnedCentral, MessageExchange
-from maniskill_tidy.training.decision_trainer import AgentConfig
 
 N = 3
 MESSAGE = {"broadcast": 410, "cond": 410, "cmpr": 110, "inten": 10}
@@ -124,7 +126,7 @@ def test_cmpr_learns_to_decode_and_inten_to_predict_the_senders_sub_goal():
         losses = []
         for _ in range(60):
             _, _, extras = exchange(messengers, x, present)
-            loss = auxiliary_loss(messengers, extras, ys)
+            loss = model.scheme.auxiliary_loss(messengers, x, extras, ys)
             opt.zero_grad()
             loss.backward()
             opt.step()
@@ -240,7 +242,7 @@ def test_a_variant_config_states_only_what_it_changes(tmp_path):
     with pytest.raises(ValueError, match="inherits from itself"):
         AgentConfig.load(tmp_path / "v.yaml")
     shipped = Path(__file__).resolve().parents[1] / "agents"
-    from maniskill_tidy.training.qmix_trainer import QmixConfig, is_qmix_config
+    from maniskill_tidy.policies.agent_config import QmixConfig, is_qmix_config
 
     for path in sorted(shipped.glob("*.yaml")):  # every shipped variant loads
         if is_qmix_config(path):  # a learner of its own, not a variant of the model
@@ -270,3 +272,30 @@ def test_the_learned_sa_plays_alone_in_every_setting(tmp_path, seeded_config):
 
     with pytest.raises(ValueError, match="is trained with --setting I"):
         train_decision(config, "II", progress=False)
+
+
+def test_a_scheme_is_a_registered_module_that_the_team_runs_without_branching(monkeypatch):
+    """Adding a scheme is adding a class: a new message-passing scheme registered by name
+    trains through TeamDecision and sends through the channel's MessageExchange unchanged."""
+    from maniskill_tidy.models import communication
+    from maniskill_tidy.models.communication.base import Messenger
+
+    class Silent(Messenger):  # sends only from the first agent's position x < 0
+        name, title, label = "silent", "test scheme", "silent communication"
+
+        def sends(self, x):
+            return x["pose"][..., 0] < 0
+
+    monkeypatch.setitem(communication.SCHEMES, "silent", Silent)
+    model = TeamDecision(DecisionConfig(communication="silent"), N)
+    assert all(isinstance(a.comm, Silent) for a in model.agents)
+    x = _inputs(np.random.default_rng(0))
+    for n, xn in enumerate(x):
+        xn["pose"] = torch.full_like(xn["pose"], 1.0 if n else -1.0)  # only agent 0 sends
+    present = torch.ones(1, 1, N, dtype=torch.bool)
+    inn, _, _ = model._communicate(None, x, present, True, None)
+    assert inn[0, 0, 0].abs().sum() == 0  # agent 0 hears nobody
+    sent = model.agents[0].comm.outgoing(x[0])
+    for i in (1, 2):  # the others read agent 0's message alone, each with its own reader
+        heard, _ = model.agents[i].comm.incoming(sent)
+        assert torch.allclose(inn[0, 0, i], heard[0, 0])

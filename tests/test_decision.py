@@ -13,6 +13,7 @@ import torch
 from maniskill_tidy.cli import main
 from maniskill_tidy.envs.actions import Action
 from maniskill_tidy.knowledge import load_catalog
+from maniskill_tidy.models.checkpoints import load_decision, save_decision
 from maniskill_tidy.models.decision import (
     DecisionConfig,
     StateExtractor,
@@ -22,6 +23,7 @@ from maniskill_tidy.models.decision import (
     crop_layout,
     suspects,
 )
+from maniskill_tidy.policies.agent_config import AgentConfig, TrainSettings
 from maniskill_tidy.policies.base import OPERATIONS
 from maniskill_tidy.training.decision_data import (
     DemoConfig,
@@ -29,13 +31,9 @@ from maniskill_tidy.training.decision_data import (
     load_demo_features,
 )
 from maniskill_tidy.training.decision_trainer import (
-    AgentConfig,
-    TrainSettings,
     embed_split,
     evaluate,
     fit,
-    load_model,
-    save_model,
     selection_score,
 )
 
@@ -193,13 +191,13 @@ def test_a_rerun_that_trains_nothing_keeps_the_code_version_that_trained(
 ):
     """The model card names the code that trained the weights; a later no-op rerun (a queue
     restarted, `make train-all`) must not relabel them."""
-    import maniskill_tidy.eval.runner as runner
+    import maniskill_tidy.common.provenance as provenance
 
     train, _ = rows
     s = TrainSettings(epochs=2, batch=1, lr=3e-3, seed=0, hard_fraction=0.5, patience=10)
 
     def fit_at(version: str, epochs: int) -> dict:
-        monkeypatch.setattr(runner, "code_version", lambda: version)
+        monkeypatch.setattr(provenance, "code_version", lambda: version)
         model = TeamDecision(_cfg(), 3)
         return fit(model, train, train, replace(s, epochs=epochs), tmp_path / "ckpt", False)
 
@@ -373,8 +371,8 @@ def test_a_variant_learns_its_own_heads_from_the_same_rows(rows, tmp_path, varia
 def test_a_saved_model_loads_in_fp16_precision(tmp_path):
     torch.manual_seed(1)
     model = TeamDecision(_cfg(), 3)
-    save_model(model, tmp_path, {"name": "x"})
-    loaded, saved = load_model(tmp_path)
+    save_decision(model, tmp_path, {"name": "x"})
+    loaded, saved = load_decision(tmp_path)
     assert saved["name"] == "x" and len(loaded.agents) == 3
     for p, q in zip(model.parameters(), loaded.parameters(), strict=True):
         assert torch.allclose(p, q, atol=1e-2, rtol=1e-2)
@@ -574,7 +572,7 @@ def test_a_student_without_a_trained_model_is_refused_before_anything_is_written
 
 
 def test_a_config_refuses_a_subgoal_temperature_that_is_not_positive(tmp_path):
-    from maniskill_tidy.training.decision_trainer import AgentConfig
+    from maniskill_tidy.policies.agent_config import AgentConfig
 
     config = tmp_path / "t.yaml"
     config.write_text(

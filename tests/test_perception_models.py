@@ -11,9 +11,9 @@ import pytest
 import torch
 
 from maniskill_tidy.envs.episodes import default_dataset
-from maniskill_tidy.eval.perception_report import compute_priors, perception_metrics
 from maniskill_tidy.knowledge import ROOM_TYPES, load_catalog, load_placement
 from maniskill_tidy.knowledge.word_vectors import derive_word_vectors, load_word_vectors, words_of
+from maniskill_tidy.models.checkpoints import load_perception, save_perception
 from maniskill_tidy.models.knowledge_graph import build_graph
 from maniskill_tidy.tasks.dataset import load_dataset
 from maniskill_tidy.training.perception_data import (
@@ -23,14 +23,13 @@ from maniskill_tidy.training.perception_data import (
     load_views,
     region_answers,
 )
+from maniskill_tidy.training.perception_report import compute_priors, perception_metrics
 from maniskill_tidy.training.perception_trainer import (
     TrainConfig,
     Views,
     embed_frames,
     fit_stage,
-    load_agent,
     new_model,
-    save_agent,
 )
 
 K = len(load_catalog().categories)
@@ -216,8 +215,8 @@ def test_a_checkpoint_made_on_other_encoders_is_started_over(houses, views, tmp_
 
 def test_checkpoint_round_trip(houses, views, tmp_path):
     model = new_model(houses, True).eval()
-    save_agent(model, tmp_path / "agent")
-    loaded = load_agent(tmp_path / "agent")
+    save_perception(model, tmp_path / "agent")
+    loaded = load_perception(tmp_path / "agent")
     assert loaded.cfg == model.cfg and loaded.nodes == model.nodes
     half = {
         k: v.half().float() if v.is_floating_point() else v for k, v in model.state_dict().items()
@@ -238,7 +237,7 @@ def test_views_refuse_another_configuration(views_dir, tmp_path):
 
 
 def test_average_precision_by_hand():
-    from maniskill_tidy.eval.perception_report import average_precision
+    from maniskill_tidy.training.perception_report import average_precision
 
     # ranks: 0.9 (hit), 0.8 (miss), 0.7 (hit): precisions 1 and 2/3
     score = np.array([0.7, 0.9, 0.8])

@@ -13,6 +13,8 @@ import numpy as np
 import pytest
 
 from maniskill_tidy.common.files import write_atomic
+from maniskill_tidy.envs.settle_check import physics_problems
+from maniskill_tidy.houses.checks import check_house
 from maniskill_tidy.houses.furnish import overlaps
 from maniskill_tidy.houses.generator import house_rng
 from maniskill_tidy.houses.navgrid import blocks_navigation
@@ -28,7 +30,7 @@ from maniskill_tidy.tasks.dataset import (
     write_manifest,
 )
 from maniskill_tidy.tasks.procthor_dataset import REPAIR_STREAM
-from maniskill_tidy.tasks.validate import check_house, physics_problems, validate_dataset
+from maniskill_tidy.tasks.validate import validate_dataset
 from tests.conftest import DATA
 from tests.test_cli_errors import cli, one_line_error
 

@@ -10,7 +10,8 @@ import pytest
 import torch
 
 from maniskill_tidy.models.qmix import OBS, QmixTeamModel
-from maniskill_tidy.training.qmix_trainer import QmixConfig, collate, td_loss, train_qmix
+from maniskill_tidy.policies.agent_config import QmixConfig
+from maniskill_tidy.training.qmix_trainer import collate, td_loss, train_qmix
 
 
 def test_the_mixer_is_monotonic_in_every_agents_q():
@@ -110,8 +111,8 @@ def test_the_qmix_team_sends_its_state_feature_and_acts_legally(tmp_path, monkey
     from maniskill_tidy.envs.actions import Action, Targeted
     from maniskill_tidy.eval.episode import play_episode
     from maniskill_tidy.eval.runner import RunConfig, make_env
+    from maniskill_tidy.models.checkpoints import save_qmix
     from maniskill_tidy.policies.qmix_team import QmixTeam
-    from maniskill_tidy.training.qmix_trainer import save_qmix
 
     torch.manual_seed(0)
     perception = {"perception": "agents/perception/knowledge"}

@@ -41,6 +41,8 @@ from enum import IntEnum
 
 import numpy as np
 
+from maniskill_tidy.houses.navgrid import ARM_REACH
+
 
 class Action(IntEnum):
     MoveAhead = 0
@@ -62,7 +64,7 @@ STEP = 0.25  # metres per move
 TURN = 90  # degrees per rotation
 LOOK = 30  # degrees per look step
 HORIZON_RANGE = (-30, 60)
-REACH = 1.5  # metres, horizontal, from the robot's centre
+REACH = ARM_REACH  # metres, horizontal, from the robot's centre (1.5)
 MIN_PIXELS = 20  # an instance covering fewer pixels than this is not "visible"
 MAX_STEPS = 300
 

@@ -41,7 +41,6 @@ from mani_skill.envs.sapien_env import BaseEnv
 from mani_skill.sensors.camera import CameraConfig
 from mani_skill.utils.registration import register_env
 
-from maniskill_tidy import ENV_ID, register_gym
 from maniskill_tidy.envs.actions import (
     HORIZON_RANGE,
     LOOK,
@@ -54,6 +53,7 @@ from maniskill_tidy.envs.actions import (
 )
 from maniskill_tidy.envs.episodes import Episode, EpisodeSet
 from maniskill_tidy.envs.manipulation import Manipulation
+from maniskill_tidy.envs.registration import ENV_ID, register_gym
 from maniskill_tidy.envs.robots import build_robot, robot_kind, robot_pose
 from maniskill_tidy.houses.schema import House
 from maniskill_tidy.knowledge import FLOOR, load_placement

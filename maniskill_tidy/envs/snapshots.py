@@ -11,10 +11,10 @@ from pathlib import Path
 
 import numpy as np
 
-from maniskill_tidy import ENV_ID, VERSIONS
 from maniskill_tidy.common.plotting import plt, save_figure
 from maniskill_tidy.envs.actions import Action, move_target
 from maniskill_tidy.envs.hetero_tidy import HeteroTidyEnv
+from maniskill_tidy.envs.registration import ENV_ID, VERSIONS
 
 
 def views_figure(env: HeteroTidyEnv, obs: dict, title: str, out: Path) -> Path:

@@ -422,6 +422,11 @@ def write_leaderboard(root: Path = Path("eval")) -> Path:
 
     root = Path(root)
     runs = collect(root)
+    if not runs:  # before anything is written: an empty leaderboard helps nobody
+        raise ValueError(
+            f"{root}: no eval runs; expected {root}/results/setting_S/NAME/summary.json "
+            "(`maniskill-tidy eval --out DIR` writes them under DIR/eval)"
+        )
     full = collect(root / FULL_PROTOCOL)
     reference = paper_reference()
     parts = [

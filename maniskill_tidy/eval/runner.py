@@ -83,7 +83,6 @@ def run_dir(out: Path, cfg: RunConfig) -> Path:
 def make_env(cfg: RunConfig, images: bool | str = False):
     import gymnasium as gym
 
-    import maniskill_tidy  # noqa: F401  (registers the env)
 
     return gym.make(cfg.env, **cfg.env_kwargs(images))
 

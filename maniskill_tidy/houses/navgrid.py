@@ -19,6 +19,9 @@ from scipy import ndimage
 from maniskill_tidy.houses.schema import AGENT_RADIUS, CELL, House, NavGrid, Room
 
 REACH = 1.0
+# How far an arm reaches, horizontally from the robot's centre: the rule of PickUp and PutDown
+# (envs/actions.py), which the house checks and repairs need too.
+ARM_REACH = 1.5
 EPS = 1e-3  # distance tolerance, larger than the 1e-4 rounding of saved coordinates
 FOUR_WAY = ndimage.generate_binary_structure(2, 1)
 

@@ -28,9 +28,9 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from maniskill_tidy.envs.actions import REACH
 from maniskill_tidy.houses.furnish import overlaps
 from maniskill_tidy.houses.navgrid import (
+    ARM_REACH,
     blocks_navigation,
     components,
     compute_free,
@@ -50,7 +50,7 @@ from maniskill_tidy.knowledge import load_placement
 MIN_OBJECTS = 5  # a meta-task misplaces up to 5 objects
 TOL = 1e-3  # the tolerance `validate` allows
 MAX_DROPS_FOR_CONNECTION = 3
-VIEW_REACH = REACH - 0.05  # a surface's middle must have a viewpoint (policies.viewpoints)
+VIEW_REACH = ARM_REACH - 0.05  # a surface's middle must have a viewpoint (policies.viewpoints)
 
 
 class HouseRejected(ValueError):
@@ -239,7 +239,7 @@ def make_sound(house: House, rng: np.random.Generator) -> tuple[House, RepairLog
     """A repaired copy of ``house`` with its navigation grid, and what changed.
 
     Raises :class:`HouseRejected` when the floor cannot be joined or too few objects remain."""
-    from maniskill_tidy.tasks.validate import check_house
+    from maniskill_tidy.houses.checks import check_house
 
     log = RepairLog()
     house = House.from_dict(house.to_dict())  # a copy, at the precision it will be saved with

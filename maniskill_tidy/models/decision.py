@@ -43,15 +43,8 @@ from torch import nn
 
 from maniskill_tidy.envs.actions import Action
 from maniskill_tidy.knowledge import load_catalog
-from maniskill_tidy.models import hangrcom
-from maniskill_tidy.models.communication import (
-    SCHEMES,
-    CentralPlanner,
-    Messenger,
-    auxiliary_loss,
-    exchange,
-)
-from maniskill_tidy.models.hangrcom import DELTA, MU, HanGrCom
+from maniskill_tidy.models.communication import scheme
+from maniskill_tidy.models.hangrcom import DELTA, MU
 from maniskill_tidy.perception.semantic_map import EXPLORED, FIRST_CHANNEL, OBSTACLE
 
 POSE = 5  # x / 10 m, y / 10 m, cos and sin of the heading, camera pitch / 60 degrees
@@ -87,7 +80,7 @@ class DecisionConfig:
     wide_layout: bool = False  # F_g reads sw (the whole map's coarse layout) too
     goal_map: bool = False  # sl also reads the sub-task's target in the crop (needs layout)
     suspects: bool = False  # F_s reads per-type misplaced probabilities, now and the episode's max
-    communication: str = "hangrcom"  # or a baseline of models/communication.py
+    communication: str = "hangrcom"  # a scheme registered in models/communication/
     # ablations (paper Section 6.5): without the misplaced-object detector F_s gets no fd and no
     # misplaced probability, without the reasonable-receptacle predictor no fp (zeros: the
     # layer sizes stay those of the full model)
@@ -298,17 +291,10 @@ class AgentDecision(nn.Module):
 
     def __init__(self, cfg: DecisionConfig) -> None:
         super().__init__()
-        if cfg.communication not in SCHEMES:
-            raise ValueError(
-                f"unknown communication {cfg.communication!r}; expected one of {list(SCHEMES)}"
-            )
         self.cfg = cfg
         self.state = StateExtractor(cfg)
-        self.comm: nn.Module | None = None
-        if cfg.communication == "hangrcom":
-            self.comm = HanGrCom(cfg.state, cfg.key, cfg.value, cfg.inter)
-        elif cfg.communication != "none":
-            self.comm = Messenger(cfg)
+        # HanGrCom's generators, a baseline's messenger, or None (w/o Comm.)
+        self.comm: nn.Module | None = scheme(cfg.communication).build(cfg)
         width = cfg.state + cfg.value + cfg.inter
         if not cfg.hierarchical:
             self.direct = DirectPolicy(cfg, width)
@@ -333,7 +319,8 @@ class TeamDecision(nn.Module):
         super().__init__()
         self.cfg = cfg
         self.agents = nn.ModuleList(AgentDecision(cfg) for _ in range(agents))
-        self.central = CentralPlanner(cfg) if cfg.communication == "central" else None
+        self.scheme = scheme(cfg.communication)
+        self.central = self.scheme.build_central(cfg)  # CentralComm's node; None otherwise
 
     def forward(
         self, x: list[dict[str, torch.Tensor]], present: torch.Tensor, hard: bool = False,
@@ -353,26 +340,7 @@ class TeamDecision(nn.Module):
 
     def _communicate(self, sf, x, present, hard, labels):
         """``inn``, ``int`` (B, T, N, ·) and the info ``forward`` returns."""
-        cfg = self.cfg
-        info = {"T": None, "aux": torch.zeros(())}
-        zeros = torch.zeros(*present.shape, cfg.inter)
-        if cfg.communication == "none":
-            return torch.zeros(*present.shape, cfg.value), zeros, info
-        if cfg.communication == "central":
-            up = torch.stack([a.comm.outgoing(xn) for a, xn in zip(self.agents, x, strict=True)],
-                             dim=2)  # fmt: skip
-            return self.central(up, present), zeros, info
-        if cfg.communication != "hangrcom":
-            messengers = [a.comm for a in self.agents]
-            inn, inter, extras = exchange(messengers, x, present)
-            info["aux"] = auxiliary_loss(messengers, extras, labels)
-            return inn, inter, info
-        gens = [agent.comm(s) for agent, s in zip(self.agents, sf, strict=True)]
-        stack = {k: torch.stack([g[k] for g in gens], dim=2) for k in gens[0]}
-        t = hangrcom.attention(stack["qry"], stack["key"], present)
-        info["T"] = t
-        if hard:
-            inn, inter = hangrcom.hard(t, stack["val"], stack["inv"], present, cfg.mu, cfg.delta)
-        else:
-            inn, inter = hangrcom.soft(t, stack["val"], stack["inv"])
-        return inn, inter, info
+        comms = [agent.comm for agent in self.agents]
+        return self.scheme.communicate(
+            self.cfg, comms, sf, x, present, hard, labels, self.central
+        )

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from maniskill_tidy.policies.agent_config import QmixConfig, is_qmix_config
 from maniskill_tidy.policies.base import AnyTeam
 from maniskill_tidy.policies.expert import ExpertTeam
 from maniskill_tidy.policies.heuristic import (
@@ -40,7 +41,6 @@ def team_class(policy: str) -> type[AnyTeam]:
         return POLICIES[policy]
     if str(policy).endswith((".yaml", ".yml")):
         from maniskill_tidy.policies.learned import resolve
-        from maniskill_tidy.training.qmix_trainer import QmixConfig, is_qmix_config
 
         if is_qmix_config(resolve(policy)):
             cfg = QmixConfig.load(resolve(policy))

@@ -26,8 +26,15 @@ import torch
 from maniskill_tidy.envs.actions import Action, Targeted
 from maniskill_tidy.envs.robots import robot_kind
 from maniskill_tidy.knowledge import ROOM_TYPES, load_catalog
-from maniskill_tidy.models.communication import TASK
+from maniskill_tidy.models.checkpoints import (
+    CheckpointError,
+    load_decision,
+    load_perception,
+    verify,
+)
+from maniskill_tidy.models.communication import TASK, scheme
 from maniskill_tidy.models.decision import DecisionConfig, crop_goal, crop_layout, suspects
+from maniskill_tidy.policies.agent_config import AgentConfig
 from maniskill_tidy.policies.base import (
     EXPLORE,
     OPERATIONS,
@@ -53,7 +60,6 @@ from maniskill_tidy.tasks.teams import SETTINGS, setting_of
 REPO = Path(__file__).resolve().parents[2]
 COMMIT_STEPS = 4  # env steps a sub-goal is pursued before a new prediction replaces it
 DEFAULT_CONFIG = Path("agents/hangrcom.yaml")
-ROUNDS = {"hangrcom": 3}  # communication rounds per step; the baselines send once
 
 
 def resolve(path: str | Path) -> Path:
@@ -117,13 +123,13 @@ class LearnedAgent(PerceivingAgent):
             name, public, outbox, perception, model.cfg.misplaced_detector,
             wide=model.cfg.wide_layout,
         )  # fmt: skip
-        self.scheme = model.cfg.communication
+        self.protocol = model.scheme.protocol
         self.exchange: HandshakeExchange | MessageExchange | None = None
-        if self.scheme == "hangrcom":
+        if self.protocol == "handshake":
             self.exchange = HandshakeExchange(
                 name, public.agents, outbox, model.cfg.mu, model.cfg.delta
             )
-        elif self.scheme != "none":
+        elif self.protocol == "messages":
             self.exchange = MessageExchange(
                 name, outbox, self.decision.comm, model.cfg.value, model.cfg.inter
             )
@@ -169,7 +175,7 @@ class LearnedAgent(PerceivingAgent):
             sf, state = self.decision.state(x, self.lstm[0])
             self.lstm = (state, *self.lstm[1:])
             self.sf = sf
-            if self.scheme == "hangrcom":
+            if self.protocol == "handshake":  # its query, key, value and inter vector
                 self.gens = {k: v[0, 0] for k, v in self.decision.comm(sf).items()}
 
     # ------------------------------------------------------------------ communication
@@ -305,9 +311,7 @@ def describe(perception: str, decision: DecisionConfig) -> str:
     cut = [name for name, kept in (("misplaced-object detector", decision.misplaced_detector),
                                    ("receptacle predictor", decision.receptacle_predictor))
            if not kept]  # fmt: skip
-    comm = {"hangrcom": "HanGrCom", "none": "no communication"}.get(
-        decision.communication, f"{decision.communication} communication"
-    )
+    comm = scheme(decision.communication).label
     kind = "hierarchical" if decision.hierarchical else "low-level (no sub-tasks)"
     return (
         f"learned: small CNNs and GCN ({perception}) over ground-truth segmentation, open3d "
@@ -328,7 +332,6 @@ class LearnedTeam(Team):
     config_file: ClassVar[Path] = DEFAULT_CONFIG
 
     def __init__(self) -> None:
-        from maniskill_tidy.training.decision_trainer import AgentConfig
 
         self.config = AgentConfig.load(resolve(self.config_file))
         self._loaded: dict = {}
@@ -350,32 +353,30 @@ class LearnedTeam(Team):
     @classmethod
     def model_folder(cls, team) -> Path:
         """Where the decision model that plays this team of capabilities is saved."""
-        from maniskill_tidy.training.decision_trainer import AgentConfig
 
         out = AgentConfig.load(resolve(cls.config_file)).out
         return resolve(out) / f"setting_{cls.trained_setting(team)}"
 
     @classmethod
     def missing_model(cls, team: tuple) -> str | None:
-        from maniskill_tidy.training.decision_trainer import AgentConfig
-
+        """Why this team cannot play (its decision or perception weights missing, damaged or
+        not the ones their card describes), or None; checked before a run writes anything."""
         setting = cls.trained_setting(team)
-        path = cls.model_folder(team) / "model.pt"
-        if path.is_file():
-            return None
+        cfg = AgentConfig.load(resolve(cls.config_file))
         # an oracle acts with another config's model (SA(Oracle): agents/sa.yaml's)
-        out = AgentConfig.load(resolve(cls.config_file)).out
-        config = f"{out}.yaml" if cls.oracle else cls.config_file
-        return (
-            f"{path} not found; train it with `maniskill-tidy train {config} --setting {setting}`"
-        )
+        config = f"{cfg.out}.yaml" if cls.oracle else cls.config_file
+        try:
+            verify(cls.model_folder(team), f"maniskill-tidy train {config} --setting {setting}")
+            verify(resolve(cfg.perception), "maniskill-tidy train perception")
+        except CheckpointError as err:
+            return str(err)
+        return None
 
     @classmethod
     def model_hash(cls, team: tuple) -> str:
         """A fingerprint of the weights this team plays with (decision and perception): an eval
         run resumed after a retraining that changed them is refused rather than mixing two
         models."""
-        from maniskill_tidy.training.decision_trainer import AgentConfig
 
         cfg = AgentConfig.load(resolve(cls.config_file))
         digest = hashlib.sha256()
@@ -389,16 +390,14 @@ class LearnedTeam(Team):
 
     def models(self, capabilities: list) -> tuple:
         """The decision model trained for this team, and the frozen perception model."""
-        from maniskill_tidy.training.decision_trainer import load_model
-        from maniskill_tidy.training.perception_trainer import load_agent
 
         setting = self.trained_setting(capabilities)
         if setting not in self._loaded:
             # Batch-of-one inference: one thread is fastest, and several contend with the
             # other evaluation workers (measured 2-20 x slower on 2 busy cores).
             torch.set_num_threads(1)
-            model, _ = load_model(self.model_folder(capabilities))
-            perception = load_agent(resolve(self.config.perception))
+            model, _ = load_decision(self.model_folder(capabilities))
+            perception = load_perception(resolve(self.config.perception))
             self._loaded[setting] = (model, perception)
         return self._loaded[setting]
 
@@ -412,14 +411,13 @@ class LearnedTeam(Team):
 
 def learned_team_class(config: str | Path) -> type[LearnedTeam]:
     """A team class named after an agent config's ``name`` (``eval --policy CONFIG.yaml``)."""
-    from maniskill_tidy.training.decision_trainer import AgentConfig
 
     cfg = AgentConfig.load(resolve(config))
     decision = cfg.decision()
-    scheme = decision.communication
-    attrs = {"name": cfg.name, "config_file": resolve(config), "communication": scheme,
+    comm = scheme(decision.communication)
+    attrs = {"name": cfg.name, "config_file": resolve(config), "communication": comm.name,
              "perception": describe(cfg.perception, decision),
-             "central": scheme == "central", "rounds": ROUNDS.get(scheme, 1),
+             "central": comm.uploads, "rounds": comm.rounds,
              "team_override": cfg.team, "oracle": cfg.acting().oracle,
              "privileged": cfg.acting().oracle}  # fmt: skip
     return type(f"LearnedTeam_{cfg.name}", (LearnedTeam,), attrs)

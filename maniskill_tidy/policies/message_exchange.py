@@ -1,16 +1,16 @@
 """One agent's side of the learned communication baselines, over the counting channel.
 
-The messages and how they are read are ``models/communication.py``'s, the functions training
-runs; this is who sends what to whom in one env step:
+The messages and how they are read are the scheme's (``models/communication/``), the modules
+training runs; this is who sends what to whom in one env step, for any message-passing scheme:
 
-- ``broadcast``, ``cmpr``, ``inten``: round 0, the agent's message to every teammate;
-  ``cond`` the same, only while its detector finds a misplaced object in view;
-- ``central``: the upload (state and map embedding) to the central node, which in the same
-  round (it reads after the agents) sends each agent that uploaded its assignment
+- round 0, the agent's message to every teammate, when its messenger ``sends`` (CondComm
+  only while its detector finds a misplaced object in view);
+- a scheme that ``uploads`` (CentralComm) sends it to the central node instead, which in the
+  same round (it reads after the agents) sends each agent that uploaded its assignment
   (:class:`LearnedCentral`).
 
 :meth:`MessageExchange.combine` then gives ``inn`` and ``int`` from what arrived, as
-``models.communication.exchange`` does for the whole team in training.
+``models.communication.base.exchange`` does for the whole team in training.
 """
 
 from __future__ import annotations
@@ -18,17 +18,17 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from maniskill_tidy.models.communication import CentralPlanner, Messenger, pool
+from maniskill_tidy.models.communication.base import Messenger, pool
+from maniskill_tidy.models.communication.central import CentralPlanner
 from maniskill_tidy.policies.base import CentralNode, PublicInfo
 from maniskill_tidy.policies.channel import CENTRAL, Message, Outbox
 
-KIND = {"central": "upload"}  # the message's kind on the channel, "message" otherwise
+UPLOAD = "upload"  # the kind of a message to the central node; "message" between agents
 
 
 class MessageExchange:
     def __init__(self, name: str, outbox: Outbox, messenger: Messenger, value: int, inter: int):
         self.name, self.outbox, self.messenger = name, outbox, messenger
-        self.scheme = messenger.scheme
         self.dims = (value, inter)
 
     def send(self, round: int, x: dict[str, torch.Tensor]) -> None:
@@ -39,14 +39,14 @@ class MessageExchange:
             if not bool(self.messenger.sends(x).reshape(-1)[0]):
                 return
             vector = self.messenger.outgoing(x).reshape(-1).numpy()
-        if self.scheme == "central":
-            self.outbox.send(CENTRAL, vector, KIND["central"])
+        if self.messenger.uploads:
+            self.outbox.send(CENTRAL, vector, UPLOAD)
         elif self.outbox.peers:
             self.outbox.send(self.outbox.peers, vector, "message")
 
     def combine(self, inbox: list[Message]) -> tuple[torch.Tensor, torch.Tensor]:
         inn, inter = torch.zeros(self.dims[0]), torch.zeros(self.dims[1])
-        if self.scheme == "central":
+        if self.messenger.uploads:  # what comes back is the node's assignment
             for m in inbox:
                 if m.kind == "assignment" and m.sender == CENTRAL:
                     inn = torch.from_numpy(np.array(m.vector))
@@ -69,7 +69,7 @@ class LearnedCentral(CentralNode):
         self.planner = planner
 
     def send(self, round: int, inbox: list[Message]) -> None:
-        uploads = {m.sender: np.array(m.vector) for m in inbox if m.kind == KIND["central"]}
+        uploads = {m.sender: np.array(m.vector) for m in inbox if m.kind == UPLOAD}
         if round != 0 or not uploads:
             return
         agents = [a for a in self.public.agents if a in uploads]

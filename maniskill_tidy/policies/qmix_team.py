@@ -19,6 +19,7 @@ import numpy as np
 import torch
 
 from maniskill_tidy.envs.actions import Action, Targeted
+from maniskill_tidy.models.checkpoints import CheckpointError, load_perception, load_qmix, verify
 from maniskill_tidy.models.qmix import ACTIONS, QmixTeamModel, observation
 from maniskill_tidy.policies.base import EXPLORE, Agent, AgentView, PublicInfo, SubTask, Team
 from maniskill_tidy.policies.channel import Message, Outbox
@@ -114,16 +115,15 @@ class QmixTeam(Team):
         from maniskill_tidy.policies.learned import resolve
 
         setting = cls.trained_setting(team)
-        path = resolve(cls.folder) / f"setting_{setting}" / "model.pt"
-        if path.is_file():
-            return None
-        train = f"maniskill-tidy train agents/qmix.yaml --setting {setting}"
-        return f"{path} not found; train it with `{train}`"
+        try:
+            verify(resolve(cls.folder) / f"setting_{setting}",
+                   f"maniskill-tidy train agents/qmix.yaml --setting {setting}")  # fmt: skip
+        except CheckpointError as err:
+            return str(err)
+        return None
 
     def models(self, capabilities: list) -> tuple:
         from maniskill_tidy.policies.learned import resolve
-        from maniskill_tidy.training.perception_trainer import load_agent
-        from maniskill_tidy.training.qmix_trainer import load_qmix
 
         if self.model is not None:
             return self.model, self._perception
@@ -131,7 +131,7 @@ class QmixTeam(Team):
         if setting not in self._loaded:
             torch.set_num_threads(1)
             model, saved = load_qmix(resolve(self.folder) / f"setting_{setting}")
-            self._loaded[setting] = (model, load_agent(resolve(saved["perception"])))
+            self._loaded[setting] = (model, load_perception(resolve(saved["perception"])))
         return self._loaded[setting]
 
     def make_agent(self, name: str, public: PublicInfo, outbox: Outbox) -> Agent:

@@ -7,24 +7,19 @@ are re-derived, and every start and goal is checked for reachability.
 
 from __future__ import annotations
 
-import itertools
 from pathlib import Path
 
 from tqdm import tqdm
 
 from maniskill_tidy.common.files import sha256
-from maniskill_tidy.houses.furnish import overlaps
+from maniskill_tidy.houses.checks import check_house, slot_of
 from maniskill_tidy.houses.navgrid import (
     REACH,
-    blocks_navigation,
-    components,
-    compute_free,
     frame_of,
     grid_array,
     main_component,
     reach_cells,
 )
-from maniskill_tidy.houses.objects import stacked_footprints, surface_slots
 from maniskill_tidy.houses.schema import (
     CELL,
     House,
@@ -34,7 +29,6 @@ from maniskill_tidy.houses.schema import (
 )
 from maniskill_tidy.knowledge import FLOOR, load_placement
 from maniskill_tidy.tasks.dataset import (
-    SPLITS,
     DatasetError,
     read_manifest,
     read_shard,
@@ -42,77 +36,6 @@ from maniskill_tidy.tasks.dataset import (
 from maniskill_tidy.tasks.metatask import MetaTask, findable, label, reasonable_surfaces
 from maniskill_tidy.tasks.starts import ROTATIONS
 from maniskill_tidy.tasks.teams import SETTINGS
-
-TOL = 1e-3
-
-
-def _slot_of(house: House, receptacle: str, surface: str | None):
-    for slot in surface_slots(house):
-        if slot.furniture.id == receptacle and slot.surface.name == surface:
-            return slot
-    return None
-
-
-def check_house(house: House) -> list[str]:
-    problems = []
-    where = house.id
-    frame, free = compute_free(house)
-    if house.navgrid is None:
-        problems.append(f"{where}: no navigation grid")
-    else:
-        stored = grid_array(house.navgrid)
-        if stored.shape != free.shape:
-            problems.append(
-                f"{where}: navigation grid shape {stored.shape}, geometry implies {free.shape}"
-            )
-        elif (stored != free).any():
-            problems.append(
-                f"{where}: navigation grid differs from the geometry at "
-                f"{int((stored != free).sum())} cells"
-            )
-    _, n = components(free)
-    if n != 1:
-        problems.append(f"{where}: free cells form {n} separate areas; every room must connect")
-    walkable = main_component(free)
-    floor_pieces = [f for f in house.furniture if blocks_navigation(f)]
-    for a, b in itertools.combinations(floor_pieces, 2):
-        if overlaps(a.footprint(), b.footprint(), -TOL):
-            problems.append(f"{where}: furniture {a.id} and {b.id} overlap")
-    knowledge = load_placement()
-    rooms = {r.id: r.type for r in house.rooms}
-    for slot in surface_slots(house):
-        if not reach_cells(frame, walkable, slot.bounds).any():
-            problems.append(
-                f"{where}: {slot.furniture.id}/{slot.surface.name} is out of reach "
-                f"of every free cell"
-            )
-    by_surface: dict[tuple, list] = {}
-    stacked = stacked_footprints(house)
-    for o in house.objects:
-        slot = _slot_of(house, o.receptacle, o.surface)
-        if slot is None:
-            problems.append(f"{where}: object {o.id} rests on unknown {o.receptacle}/{o.surface}")
-            continue
-        if not knowledge.D(o.type, slot.surface.receptacle_type, rooms[o.room]):
-            problems.append(
-                f"{where}: object {o.id} starts unreasonable: "
-                f"{slot.surface.receptacle_type} in {rooms[o.room]}"
-            )
-        fp = o.footprint()
-        b = slot.bounds
-        if fp[0] < b[0] - TOL or fp[1] < b[1] - TOL or fp[2] > b[2] + TOL or fp[3] > b[3] + TOL:
-            problems.append(f"{where}: object {o.id} sticks out of {o.receptacle}/{o.surface}")
-        for other in by_surface.get((o.receptacle, o.surface), []):
-            if overlaps(fp, other.footprint(), -TOL):
-                problems.append(f"{where}: objects {o.id} and {other.id} interpenetrate")
-        if o.surface == "top" and any(
-            overlaps(fp, piece, -TOL) for piece in stacked.get(o.receptacle, [])
-        ):
-            problems.append(f"{where}: object {o.id} is inside a piece standing on {o.receptacle}")
-        by_surface.setdefault((o.receptacle, o.surface), []).append(o)
-        if not reach_cells(frame, walkable, fp).any():
-            problems.append(f"{where}: object {o.id} is out of reach")
-    return problems
 
 
 def check_task(house: House, task: MetaTask, from_floor: bool = False) -> list[str]:
@@ -146,7 +69,7 @@ def check_task(house: House, task: MetaTask, from_floor: bool = False) -> list[s
             rtype = FLOOR
             fp_reach = CELL * 1.5
         else:
-            slot = _slot_of(house, loc.receptacle, loc.surface)
+            slot = slot_of(house, loc.receptacle, loc.surface)
             if slot is None:
                 problems.append(
                     f"{where}: {m.object} moved to unknown {loc.receptacle}/{loc.surface}"
@@ -262,34 +185,4 @@ def validate_dataset(root: Path, progress: bool = True, deep: bool = True) -> li
                 problems.append(f"{name}: task {task.id} refers to unknown house {task.house_id}")
                 continue
             problems += [f"{name}: {p}" for p in check_task(house, task, from_floor)]
-    return problems
-
-
-def physics_problems(
-    root: Path, splits: tuple[str, ...] = SPLITS, progress: bool = True
-) -> list[str]:
-    """Objects that move more than 3 cm while physics settles at the start of an episode.
-
-    Builds every house in the simulator and resets each meta-task once (its starts differ only
-    in where the robots stand): slow, about 0.3 s a meta-task on one core."""
-    from maniskill_tidy.envs.hetero_tidy import HeteroTidyEnv
-    from maniskill_tidy.sim.house_scene import MOVED
-
-    problems = []
-    manifest = read_manifest(root)
-    for split in splits:
-        if not any(n.startswith(split + "/") for n in manifest["files"]):
-            continue
-        env = HeteroTidyEnv(setting="I", dataset=str(root), split=split, obs_mode="none")
-        try:
-            firsts = [i for i in range(len(env.episodes)) if env.episodes.get(i).start == 0]
-            for i in tqdm(firsts, desc=f"physics {split}", unit="task", disable=not progress):
-                _, info = env.reset(options={"episode": i})
-                if info["fallen"]:
-                    problems.append(
-                        f"{env.episode.task.id}: {', '.join(info['fallen'])} moved more than "
-                        f"{MOVED * 100:.0f} cm when the episode started (not at rest)"
-                    )
-        finally:
-            env.close()
     return problems

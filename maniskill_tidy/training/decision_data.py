@@ -290,7 +290,6 @@ def build_demo_features(
     """Write ``out/setting_S/SPLIT/house_*.npz`` (resumable per house); return the manifest."""
     import gymnasium as gym
 
-    import maniskill_tidy  # noqa: F401
     from maniskill_tidy.common.provenance import code_version
     from maniskill_tidy.policies import POLICIES
 

@@ -25,19 +25,19 @@ import hashlib
 import io
 import json
 import time
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 import torch
 import torch.nn.functional as F
-import yaml
 from scipy.stats import rankdata
 from tqdm import tqdm
 
 from maniskill_tidy.common.files import write_atomic
-from maniskill_tidy.knowledge import ROOM_TYPES, load_catalog
-from maniskill_tidy.models.communication import SCHEMES, TASK
+from maniskill_tidy.knowledge import load_catalog
+from maniskill_tidy.models.checkpoints import save_decision, weights_sha256
+from maniskill_tidy.models.communication import TASK, scheme
 from maniskill_tidy.models.decision import (
     HEADS_GOAL,
     HEADS_TASK,
@@ -47,6 +47,7 @@ from maniskill_tidy.models.decision import (
     crop_layout,
     suspects,
 )
+from maniskill_tidy.policies.agent_config import AgentConfig, TrainSettings
 from maniskill_tidy.policies.base import OPERATIONS
 from maniskill_tidy.tasks.teams import SETTINGS
 from maniskill_tidy.training.decision_data import DemoConfig, build_demo_features
@@ -56,146 +57,6 @@ SCALARS = ("mis", "det", "failed")
 LABELS = HEADS_TASK + HEADS_GOAL
 DIRECT = ("action", "receptacle")  # w/o HierDec.'s heads
 OFFSET = {"dx": 4, "dy": 4}  # -4..4 -> class 0..8
-
-
-@dataclass(frozen=True)
-class TrainSettings:
-    epochs: int = 30
-    batch: int = 8  # episodes
-    lr: float = 1e-3
-    seed: int = 0
-    hard_fraction: float = 0.5
-    patience: int = 6  # epochs without a better val score before stopping
-    # "loss": the inference-mode val loss. "accuracy": the mean over heads of val accuracy
-    # above the most frequent label; the summed loss can rise on the rare object and
-    # receptacle heads, which grow over-confident, while the sub-goal heads still improve.
-    select: str = "loss"
-
-
-@dataclass(frozen=True)
-class ActSettings:
-    """How the learned team turns the heads into actions (``policies/learned.py``)."""
-
-    # None: the argmax of ope (the paper's decoding). A probability p: operate whenever an
-    # operation's probability exceeds p and the operation is possible now. PickUp is one step
-    # per pick in the demonstrations, so its probability rarely wins the argmax even where
-    # the model ranks those steps well (measured on val: README, "Where it stands").
-    ope_threshold: float | None = None
-    # Sample the sub-goal's dx, dy and drot from their heads (seeded per agent) instead of the
-    # argmax: the teacher's moves are spread over many cells, and the argmax of each axis
-    # alone names one fixed cell that an agent walks to, or stays at, step after step.
-    sample_subgoal: bool = False
-    # With sample_subgoal: draw from softmax(logits / T). Below 1 the draws stay nearer the
-    # likeliest cell (towards the argmax as T -> 0), above 1 they spread out.
-    subgoal_temperature: float = 1.0
-    # SA(Oracle) (paper Section 6.3): the misplaced objects' locations are given at reset. With
-    # nothing in hand the agent walks to the nearest one it has not picked up instead of
-    # exploring, and knows which objects in view are misplaced; the same trained model decides
-    # everything else. Its rows are marked privileged: it reads the task.
-    oracle: bool = False
-
-
-@dataclass(frozen=True)
-class AgentConfig:
-    """An agent config file (``agents/*.yaml``), checked on load."""
-
-    name: str
-    out: str  # where the trained model goes (a ``setting_S`` folder per setting)
-    perception: str = "agents/perception/knowledge"
-    dataset: str = "data/tidy120"
-    demos: str = "data/demos"
-    work: str = "data/decision"
-    workers: int = 2
-    train_demos: dict = field(default_factory=lambda: {"starts": 1, "tasks": 5})
-    val_demos: dict = field(default_factory=lambda: {"starts": 1, "tasks": 2})
-    model: dict = field(default_factory=dict)
-    train: dict = field(default_factory=dict)
-    act: dict = field(default_factory=dict)
-    notes: str = ""  # printed in the model card (e.g. why this many demonstrations)
-    # a team of its own, played in every setting (SA: [[1, 1, 1]], one manipulator); its
-    # teacher must play with the same team, and it is trained with --setting I
-    team: list | None = None
-    # demos roots whose train rows (same setting) join this config's own: DAgger aggregates the
-    # student's labelled rollouts with the teacher's trajectories; made by the config that owns them
-    also_train: list = field(default_factory=list)
-
-    @classmethod
-    def load(cls, path: Path) -> AgentConfig:
-        path = Path(path)
-        raw = _read_config(path)
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(raw) - known)
-        if unknown:
-            raise ValueError(f"{path}: unknown keys {unknown}; expected some of {sorted(known)}")
-        for key in ("name", "out"):
-            if key not in raw:
-                raise ValueError(f"{path}: missing {key!r}")
-        cfg = cls(**raw)
-        for section, klass in (
-            ("model", DecisionConfig), ("train", TrainSettings), ("act", ActSettings),
-        ):  # fmt: skip
-            names = {f.name for f in fields(klass)}
-            bad = sorted(set(getattr(cfg, section)) - names)
-            if bad:
-                raise ValueError(f"{path}: unknown {section} keys {bad}; expected {sorted(names)}")
-        cfg.acting()  # checks the act section's values
-        scheme = cfg.model.get("communication", "hangrcom")
-        if scheme not in SCHEMES:
-            raise ValueError(
-                f"{path}: model communication {scheme!r}: expected one of {list(SCHEMES)}"
-            )
-        if cfg.model.get("goal_map") and not cfg.model.get("layout"):
-            raise ValueError(f"{path}: model goal_map needs layout: true (the goal is its channel)")
-        for section in ("train_demos", "val_demos"):
-            keys = {"starts", "tasks", "houses", "teacher", "student"}
-            bad = sorted(set(getattr(cfg, section)) - keys)
-            if bad:
-                raise ValueError(f"{path}: unknown {section} keys {bad}")
-        return cfg
-
-    def decision(self) -> DecisionConfig:
-        catalog = load_catalog()
-        return DecisionConfig(
-            categories=len(catalog.categories), objects=len(catalog.pickupable),
-            receptacles=len(catalog.receptacles), rooms=len(ROOM_TYPES), **self.model,
-        )  # fmt: skip
-
-    def acting(self) -> ActSettings:
-        a = ActSettings(**self.act)
-        if a.ope_threshold is not None and not 0 < a.ope_threshold < 1:
-            raise ValueError(f"act ope_threshold {a.ope_threshold!r}: expected a probability")
-        if not a.subgoal_temperature > 0:
-            raise ValueError(
-                f"act subgoal_temperature {a.subgoal_temperature!r}: expected a number above 0"
-            )
-        return a
-
-    def settings(self) -> TrainSettings:
-        s = TrainSettings(**self.train)
-        if s.select not in ("loss", "accuracy"):
-            raise ValueError(f"train select {s.select!r}: expected 'loss' or 'accuracy'")
-        return s
-
-
-def _read_config(path: Path, seen: tuple[Path, ...] = ()) -> dict:
-    """A config's mapping; ``base: OTHER.yaml`` (relative to it) inherits OTHER's keys, the
-    sections (model, train, act, ...) merged key by key, so that a variant states only what it
-    changes."""
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: no such agent config (a YAML file under agents/)")
-    raw = yaml.safe_load(path.read_text()) or {}
-    if not isinstance(raw, dict):
-        raise ValueError(f"{path}: expected a mapping of settings, got {type(raw).__name__}")
-    if "base" not in raw:
-        return raw
-    base_path = (path.parent / str(raw.pop("base"))).resolve()
-    if base_path in seen:
-        raise ValueError(f"{path}: its base {base_path} inherits from itself")
-    merged = _read_config(base_path, (*seen, path.resolve()))
-    for key, value in raw.items():
-        both = isinstance(value, dict) and isinstance(merged.get(key), dict)
-        merged[key] = {**merged[key], **value} if both else value
-    return merged
 
 
 # ------------------------------------------------------------------- features of every row
@@ -265,7 +126,7 @@ def _feature_hash(demos_hash: str, perception: Path) -> str:
 @torch.no_grad()
 def embed_split(directory: Path, perception_dir: Path, cache: Path, progress: bool = True) -> Rows:
     """Run the frozen perception over every row of a demos folder (cached by hash)."""
-    from maniskill_tidy.training.perception_trainer import load_agent
+    from maniskill_tidy.models.checkpoints import load_perception
 
     manifest = json.loads((directory / "manifest.json").read_text())
     key = _feature_hash(manifest["demos_hash"], perception_dir)
@@ -274,7 +135,7 @@ def embed_split(directory: Path, perception_dir: Path, cache: Path, progress: bo
         saved = torch.load(path, weights_only=False)
         saved["y"]["action"] = action_labels(directory)
         return Rows(saved["x"], saved["y"], saved["index"], key)
-    perception = load_agent(perception_dir)
+    perception = load_perception(perception_dir)
     k = perception.cfg.categories
     shards = sorted(directory.glob("house_*.npz"))
     parts: dict[str, list] = {}
@@ -511,29 +372,6 @@ def fit(
     return state
 
 
-def save_model(model: TeamDecision, folder: Path, extra: dict) -> None:
-    """fp16 weights and the config, atomically."""
-    folder.mkdir(parents=True, exist_ok=True)
-    half = {k: (v.half() if v.is_floating_point() else v) for k, v in model.state_dict().items()}
-    buf = io.BytesIO()
-    payload = {"config": asdict(model.cfg), "agents": len(model.agents), "state": half, **extra}
-    torch.save(payload, buf)
-    write_atomic(folder / "model.pt", buf.getvalue())
-    write_atomic(folder / "config.json", json.dumps(payload | {"state": None}, indent=1).encode())
-
-
-def load_model(folder: Path) -> tuple[TeamDecision, dict]:
-    """A trained team model in float32 and what was saved with it."""
-    path = Path(folder) / "model.pt"
-    if not path.is_file():
-        raise FileNotFoundError(f"{path} not found; train it with `maniskill-tidy train CONFIG`")
-    saved = torch.load(path, weights_only=False)
-    model = TeamDecision(DecisionConfig(**saved["config"]), saved["agents"])
-    model.load_state_dict({k: v.float() if v.is_floating_point() else v
-                           for k, v in saved["state"].items()})  # fmt: skip
-    return model.eval(), saved
-
-
 def demos_folder(cfg: AgentConfig, setting: str, split: str) -> Path:
     return Path(cfg.demos) / f"setting_{setting}" / split
 
@@ -624,7 +462,8 @@ def train_decision(config: Path, setting: str, progress: bool = True) -> dict:
         "act": asdict(cfg.acting()),
     }
     folder = Path(cfg.out) / f"setting_{setting}"
-    save_model(model, folder, {"name": cfg.name, "perception": str(perception)})
+    save_decision(model, folder, {"name": cfg.name, "perception": str(perception)})
+    card["weights_sha256"] = weights_sha256(folder)  # checked when a team loads it
     write_atomic(folder / "card.json", json.dumps(card, indent=1, sort_keys=True).encode())
     write_atomic(folder / "MODEL_CARD.md", model_card(card).encode())
     return card
@@ -710,17 +549,6 @@ def model_card(card: dict) -> str:
     return "\n".join(lines)
 
 
-COMMUNICATION = {
-    "hangrcom": "HanGrCom (paper Sections 5.3-5.5)",
-    "none": "no communication (w/o Comm.)",
-    "broadcast": "BroadComm.: state and map embedding to every teammate",
-    "cond": "CondComm.: state and map embedding while a misplaced object is in view",
-    "cmpr": "CmprComm.: state and a 100-value code of the map embedding",
-    "inten": "IntenComm.: state and sub-task, and the teammates' predicted sub-goals",
-    "central": "CentralComm.: uploads to a central node that sends assignments",
-}
-
-
 def _method(decision: dict) -> str:
     """What the card's model is, in words."""
     how = (
@@ -728,7 +556,7 @@ def _method(decision: dict) -> str:
         if decision.get("hierarchical", True)
         else ("Direct low-level actions (w/o HierDec.)")
     )
-    parts = [f"{how} with {COMMUNICATION[decision.get('communication', 'hangrcom')]}"]
+    parts = [f"{how} with {scheme(decision.get('communication', 'hangrcom')).title}"]
     if not decision.get("misplaced_detector", True):
         parts.append("without the misplaced-object detector (w/o MisObjDec.)")
     if not decision.get("receptacle_predictor", True):

@@ -108,7 +108,6 @@ def write_demonstrations(
     """Write the expert's trajectories for a split (resumable per house); returns the manifest."""
     import gymnasium as gym
 
-    import maniskill_tidy  # noqa: F401
     from maniskill_tidy.common.provenance import code_version
     from maniskill_tidy.policies.expert import ExpertTeam
 

@@ -22,7 +22,6 @@ def worker_env(dataset: str | None, setting: str, split: str, env_id: str = "Het
     look (HeteroTidy-v1 or -v2)."""
     import gymnasium as gym
 
-    import maniskill_tidy  # noqa: F401  (registers the env)
 
     return gym.make(
         env_id,

@@ -238,7 +238,6 @@ def build_views(
     """Write ``out/SPLIT/house_*.npz`` (resumable per house) and return the manifest."""
     import gymnasium as gym
 
-    import maniskill_tidy  # noqa: F401
     from maniskill_tidy.common.provenance import code_version
 
     probe = gym.make(cfg.env, dataset=dataset, split=cfg.split, obs_mode="none")

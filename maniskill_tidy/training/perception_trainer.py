@@ -31,16 +31,16 @@ import torch.nn.functional as F  # noqa: N812
 from tqdm import tqdm
 
 from maniskill_tidy.common.files import write_atomic
-from maniskill_tidy.eval.perception_report import (
+from maniskill_tidy.knowledge import load_catalog
+from maniskill_tidy.models.checkpoints import save_perception, type_vectors, weights_sha256
+from maniskill_tidy.models.knowledge_graph import build_graph
+from maniskill_tidy.models.perception import PerceptionConfig, PerceptionModel
+from maniskill_tidy.training.perception_data import REGIONS, ViewsConfig, build_views, load_views
+from maniskill_tidy.training.perception_report import (
     compute_priors,
     draw_curves,
     perception_metrics,
 )
-from maniskill_tidy.knowledge import load_catalog
-from maniskill_tidy.knowledge.word_vectors import load_word_vectors
-from maniskill_tidy.models.knowledge_graph import build_graph
-from maniskill_tidy.models.perception import PerceptionConfig, PerceptionModel
-from maniskill_tidy.training.perception_data import REGIONS, ViewsConfig, build_views, load_views
 
 VARIANTS = {"knowledge": True, "no-knowledge": False}  # sub-folder of the agent folder
 VISIBLE_SHARE = 0.005  # a category covering this share of the image counts as in view
@@ -248,12 +248,6 @@ def fit_stage(
     }
 
 
-def _type_vectors() -> torch.Tensor:
-    """(K, word dim): the GloVe vectors of the catalog's categories, in channel order."""
-    vectors = load_word_vectors()
-    return torch.from_numpy(np.stack([vectors[c] for c in load_catalog().categories]))
-
-
 def new_model(train_houses: list, knowledge: bool) -> PerceptionModel:
     catalog = load_catalog()
     cfg = PerceptionConfig(
@@ -262,7 +256,7 @@ def new_model(train_houses: list, knowledge: bool) -> PerceptionModel:
         regions=REGIONS**2,
         knowledge=knowledge,
     )
-    return PerceptionModel(cfg, _type_vectors(), build_graph(train_houses))
+    return PerceptionModel(cfg, type_vectors(), build_graph(train_houses))
 
 
 def _views_hash(root: Path) -> str:
@@ -271,15 +265,6 @@ def _views_hash(root: Path) -> str:
         manifest = json.loads((root / split / "manifest.json").read_text())
         digest.update(manifest["views_hash"].encode())
     return digest.hexdigest()
-
-
-def save_agent(model: PerceptionModel, folder: Path) -> None:
-    """fp16 weights and the config, atomically."""
-    half = {k: (v.half() if v.is_floating_point() else v) for k, v in model.state_dict().items()}
-    buf = io.BytesIO()
-    torch.save({"config": asdict(model.cfg), "nodes": list(model.nodes), "state": half}, buf)
-    write_atomic(folder / "model.pt", buf.getvalue())
-    write_atomic(folder / "config.json", json.dumps(asdict(model.cfg), indent=1).encode())
 
 
 def write_card(folder: Path, card: dict, priors: dict) -> None:
@@ -371,37 +356,11 @@ def train_perception(
         }
         model.eval()
         cards[variant]["val"] = perception_metrics(model, val, priors)
-        save_agent(model, agents / variant)
+        save_perception(model, agents / variant)
+        cards[variant]["weights_sha256"] = weights_sha256(agents / variant)
         write_card(agents / variant, cards[variant], priors)
     draw_curves(cards, agents / "curves.png")
     return cards
-
-
-def load_agent(folder: Path) -> PerceptionModel:
-    """A shipped perception model, in float32, ready for inference."""
-    path = Path(folder) / "model.pt"
-    if not path.is_file():
-        raise FileNotFoundError(
-            f"{path} not found; train it with `maniskill-tidy train perception`"
-        )
-    saved = torch.load(path, weights_only=False)
-    cfg = PerceptionConfig(**saved["config"])
-    graph = _graph_from_state(saved["state"], saved["nodes"])
-    model = PerceptionModel(cfg, _type_vectors(), graph)
-    model.load_state_dict({k: v.float() if v.is_floating_point() else v
-                           for k, v in saved["state"].items()})  # fmt: skip
-    return model.eval()
-
-
-def _graph_from_state(state: dict, nodes: list[str]):
-    from maniskill_tidy.models.knowledge_graph import KnowledgeGraph
-
-    return KnowledgeGraph(
-        tuple(nodes),
-        state["gcn.edge_index"],
-        state["gcn.edge_weight"].float(),
-        state["gcn.features"].float(),
-    )
 
 
 def model_card(card: dict) -> str:

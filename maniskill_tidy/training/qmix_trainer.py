@@ -26,70 +26,18 @@ import copy
 import io
 import json
 import time
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 import torch
-import yaml
 from tqdm import tqdm
 
 from maniskill_tidy.common.files import write_atomic
+from maniskill_tidy.models.checkpoints import save_qmix, weights_sha256
 from maniskill_tidy.models.qmix import OBS, QmixTeamModel
+from maniskill_tidy.policies.agent_config import QmixConfig
 from maniskill_tidy.tasks.teams import SETTINGS
-
-
-@dataclass(frozen=True)
-class QmixConfig:
-    name: str
-    out: str
-    trainer: str = "qmix"
-    perception: str = "agents/perception/knowledge"
-    dataset: str = "data/tidy120"
-    work: str = "data/qmix"
-    episodes: int = 60  # the budget: training episodes
-    max_steps: int = 300
-    seed: int = 0
-    gamma: float = 0.99
-    lr: float = 5e-4
-    batch: int = 4  # episodes per update
-    buffer: int = 40  # the last episodes sampled from
-    updates: int = 4  # TD updates after each episode
-    target_every: int = 5  # episodes between copies to the target networks
-    epsilon: dict = field(default_factory=lambda: {"start": 1.0, "end": 0.05, "episodes": 40})
-    reward: dict = field(default_factory=lambda: {"placed": 1.0, "picked": 0.2, "step": -0.001})
-    val_episodes: int = 4  # greedy episodes on val for the card
-    notes: str = ""
-
-    @classmethod
-    def load(cls, path: Path) -> QmixConfig:
-        path = Path(path)
-        raw = yaml.safe_load(path.read_text()) or {}
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(raw) - known)
-        if unknown:
-            raise ValueError(f"{path}: unknown keys {unknown}; expected some of {sorted(known)}")
-        for key in ("name", "out"):
-            if key not in raw:
-                raise ValueError(f"{path}: missing {key!r}")
-        cfg = cls(**raw)
-        if set(cfg.epsilon) != {"start", "end", "episodes"}:
-            raise ValueError(f"{path}: epsilon needs start, end and episodes, got {cfg.epsilon}")
-        if set(cfg.reward) != {"placed", "picked", "step"}:
-            raise ValueError(f"{path}: reward needs placed, picked and step, got {cfg.reward}")
-        if cfg.episodes < 1 or cfg.batch < 1:
-            raise ValueError(f"{path}: episodes and batch must be at least 1")
-        return cfg
-
-    def exploration(self, episode: int) -> float:
-        e = self.epsilon
-        frac = min(episode / max(e["episodes"], 1), 1.0)
-        return float(e["start"] + frac * (e["end"] - e["start"]))
-
-
-def is_qmix_config(path: Path) -> bool:
-    raw = yaml.safe_load(Path(path).read_text()) if Path(path).is_file() else None
-    return isinstance(raw, dict) and raw.get("trainer") == "qmix"
 
 
 # ----------------------------------------------------------------------------- episodes
@@ -160,34 +108,14 @@ def td_loss(model: QmixTeamModel, target: QmixTeamModel, b: dict, gamma: float) 
 
 
 # ----------------------------------------------------------------------------- training
-def save_qmix(model: QmixTeamModel, folder: Path, extra: dict) -> None:
-    folder.mkdir(parents=True, exist_ok=True)
-    half = {k: (v.half() if v.is_floating_point() else v) for k, v in model.state_dict().items()}
-    buf = io.BytesIO()
-    torch.save({"agents": model.n, "feature": model.feature, "state": half, **extra}, buf)
-    write_atomic(folder / "model.pt", buf.getvalue())
-
-
-def load_qmix(folder: Path) -> tuple[QmixTeamModel, dict]:
-    path = Path(folder) / "model.pt"
-    if not path.is_file():
-        raise FileNotFoundError(f"{path} not found; train it with `maniskill-tidy train "
-                                "agents/qmix.yaml --setting S`")  # fmt: skip
-    saved = torch.load(path, weights_only=False)
-    model = QmixTeamModel(saved["agents"], saved["feature"])
-    model.load_state_dict({k: v.float() if v.is_floating_point() else v
-                           for k, v in saved["state"].items()})  # fmt: skip
-    return model.eval(), saved
-
-
 def train_qmix(config: Path, setting: str, progress: bool = True, env=None) -> dict:
     """Train (resumable), then write the model, its card and learning curve; returns the card.
     ``env``: a train-split env of the setting to reuse (made from the config when None)."""
     from maniskill_tidy.common.provenance import code_version
     from maniskill_tidy.eval.episode import play_episode
     from maniskill_tidy.eval.runner import RunConfig, make_env
+    from maniskill_tidy.models.checkpoints import load_perception
     from maniskill_tidy.policies.qmix_team import QmixTeam, Steps
-    from maniskill_tidy.training.perception_trainer import load_agent
 
     cfg = QmixConfig.load(config)
     if setting not in SETTINGS:
@@ -212,7 +140,7 @@ def train_qmix(config: Path, setting: str, progress: bool = True, env=None) -> d
             rng.bit_generator.state = saved["rng"]
             torch.set_rng_state(saved["torch_rng"])
             state = saved["state"]
-    perception = load_agent(Path(cfg.perception))
+    perception = load_perception(Path(cfg.perception))
     own_env = env is None
     if own_env:
         env = make_env(RunConfig("qmix", setting, "train", cfg.dataset))
@@ -282,6 +210,7 @@ def train_qmix(config: Path, setting: str, progress: bool = True, env=None) -> d
         "parameters_per_agent": sum(p.numel() for p in model.agents[0].parameters()),
         "mixer_parameters": sum(p.numel() for p in model.mixer.parameters()),
         "val": validate(cfg, setting, model, perception), "code_version": code_version(),
+        "weights_sha256": weights_sha256(folder),
     }  # fmt: skip
     write_atomic(folder / "card.json", json.dumps(card, indent=1).encode())
     write_atomic(folder / "MODEL_CARD.md", qmix_card(card).encode())

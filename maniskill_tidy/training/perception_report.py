@@ -265,9 +265,10 @@ def write_json(path: Path, payload: dict) -> None:
 def report(agents: Path, dataset: Path, split: str, work: Path, workers: int = 2) -> str:
     """Evaluate both variants of ``agents`` on ``split``; writes SPLIT.md, SPLIT.json and
     SPLIT.png in ``agents`` and returns the table."""
+    from maniskill_tidy.models.checkpoints import load_perception
     from maniskill_tidy.tasks.dataset import read_manifest
     from maniskill_tidy.training.perception_data import ViewsConfig, build_views, load_views
-    from maniskill_tidy.training.perception_trainer import VARIANTS, Views, load_agent
+    from maniskill_tidy.training.perception_trainer import VARIANTS, Views
 
     cards = {}
     for variant in VARIANTS:
@@ -299,7 +300,7 @@ def report(agents: Path, dataset: Path, split: str, work: Path, workers: int = 2
     )
     views = Views(load_views(work / "views" / split))
     priors = json.loads((agents / "knowledge" / "priors.json").read_text())
-    results = {v: perception_metrics(load_agent(agents / v), views, priors) for v in VARIANTS}
+    results = {v: perception_metrics(load_perception(agents / v), views, priors) for v in VARIANTS}
     table = format_report(results, split)
     note = (
         "\n\nDetections are the renderer's ground-truth segmentation (standing in for Mask "

@@ -81,7 +81,6 @@ def _serve_twin(conn, backend: str, kwargs: dict) -> None:
     ("reset", (index, seed)) and ("step", actions) with what the comparison reads."""
     import gymnasium as gym
 
-    import maniskill_tidy  # noqa: F401  (registers the env)
     from maniskill_tidy.common.parallel import die_with_parent
 
     die_with_parent()
@@ -183,7 +182,6 @@ def compare_backends(
     import gymnasium as gym
     from tqdm import tqdm
 
-    import maniskill_tidy  # noqa: F401  (registers the env)
     from maniskill_tidy.eval.episode import play_episode
     from maniskill_tidy.eval.runner import select
     from maniskill_tidy.policies import make_team
@@ -324,7 +322,6 @@ def record_trace(
     import gymnasium as gym
     from tqdm import tqdm
 
-    import maniskill_tidy  # noqa: F401  (registers the env)
     from maniskill_tidy.eval.episode import play_episode
     from maniskill_tidy.eval.runner import select
     from maniskill_tidy.policies import make_team
@@ -358,7 +355,6 @@ def compare_with_trace(
     import gymnasium as gym
     from tqdm import tqdm
 
-    import maniskill_tidy  # noqa: F401  (registers the env)
 
     if not (trace / TRACE_META).is_file():
         raise ValueError(f"--against {trace}: no {TRACE_META} there (expected a check-render "

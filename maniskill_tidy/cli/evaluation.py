@@ -1,0 +1,171 @@
+"""Commands that evaluate teams and report: eval, leaderboard, compare, replay."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from maniskill_tidy.cli.options import env_option, ray_option
+
+
+def _eval(args: argparse.Namespace) -> int:
+    from maniskill_tidy.eval.runner import RunConfig, episode_spec, evaluate, run_dir
+
+    cfg = RunConfig(
+        policy=args.policy,
+        setting=args.setting,
+        split=args.split,
+        dataset=args.dataset,
+        episodes=episode_spec(args.episodes),
+        seed=args.seed,
+        task_type=args.task_type,
+        env=args.env,
+    )
+    summary = evaluate(
+        cfg,
+        Path(args.out),
+        workers=args.workers,
+        record=args.record,
+        images=args.images,
+        ray=args.ray,
+    )
+    rows = summary["metrics"]
+    print(
+        f"{args.policy}, setting {args.setting}, {args.split} ({summary['protocol']}): "
+        f"{summary['episodes']} episodes"
+    )
+    for split, m in rows.items():
+        if m["episodes"]:
+            lo, hi = m["ci95"]["Success"]
+            print(
+                f"  {split:6s} Success {m['Success']:.3f} [{lo:.3f}, {hi:.3f}]  "
+                f"%PS {m['%PS']:.3f}  %FM {m['%FM']:.3f}  #PL {m['#PL']:.1f}  "
+                f"ACm {m['ACm']:.1f}  ({m['episodes']} ep)"
+            )
+    if len(summary["code_versions"]) > 1:
+        print(f"  note: this run mixes code versions {summary['code_versions']}")
+    print(f"wrote {run_dir(Path(args.out), cfg) / 'summary.json'}")
+    return 0
+
+
+def _policies(args: argparse.Namespace) -> int:
+    from maniskill_tidy.policies import POLICIES
+
+    for name, cls in POLICIES.items():
+        comm = getattr(cls, "communication", "none")
+        seen = getattr(cls, "perception", "")
+        print(f"{name:22s} communication: {comm:10s} perception: {seen}")
+    return 0
+
+
+def _leaderboard(args: argparse.Namespace) -> int:
+    from maniskill_tidy.eval.leaderboard import write_leaderboard
+
+    out = write_leaderboard(Path(args.root))
+    print(f"wrote {out} and {out.with_name('leaderboard.png')}")
+    return 0
+
+
+def _compare(args: argparse.Namespace) -> int:
+    from maniskill_tidy.eval.metrics import METRICS, paired_difference
+    from maniskill_tidy.eval.runner import read_records
+
+    runs = []
+    for folder in (Path(args.a), Path(args.b)):
+        path = folder if folder.suffix == ".jsonl" else folder / "episodes.jsonl"
+        if not path.is_file():
+            raise ValueError(f"{folder}: no episodes.jsonl; expected an eval run's folder")
+        runs.append(read_records(path, repair=False))
+    d = paired_difference(*runs)
+    print(f"A - B over the {d['episodes']} episodes both played (95 % paired interval)")
+    print(f"{'metric':>8} {'A - B':>8} {'interval':>20} {'A better':>9} {'A worse':>8}")
+    for m in METRICS:
+        r = d[m]
+        lo, hi = r["ci95"]
+        print(f"{m:>8} {r['difference']:>+8.3f} {f'[{lo:+.3f}, {hi:+.3f}]':>20} "
+              f"{r['better']:>9} {r['worse']:>8}")  # fmt: skip
+    print(f"{'run':>8} {'placed':>14} {'failed actions per episode':>27}")
+    for side in ("A", "B"):
+        t = d["totals"][side]
+        placed = f"{t['placed']} / {t['misplaced']}"
+        failed = f"{t['failed_per_episode']:.1f} of {t['agent_steps_per_episode']:.0f}"
+        print(f"{side:>8} {placed:>14} {failed:>27}")
+    return 0
+
+
+def _replay(args: argparse.Namespace) -> int:
+    import shutil
+    import subprocess
+
+    path = Path(args.file)
+    if not path.is_file() or path.suffix != ".rrd":
+        raise ValueError(f"{path} is not an .rrd recording (expected a file made by eval --record)")
+    viewer = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
+    check = subprocess.run([viewer, "rrd", "verify", str(path)], capture_output=True, text=True)
+    if check.returncode != 0:
+        reason = (check.stderr.strip().splitlines() or ["rerun rrd verify failed"])[-1]
+        raise ValueError(f"{path} is damaged ({reason}); record the episode again")
+    cmd = [viewer, str(path)] + (["--web-viewer"] if args.web else [])
+    print(" ".join(cmd))
+    return subprocess.call(cmd)
+
+
+def add_commands(sub: argparse._SubParsersAction) -> None:
+    ev = sub.add_parser(
+        "eval",
+        help="evaluate a team on a split (resumable, JSONL + summary)",
+        description="Evaluate a team. The standard protocol (the default) plays the first start "
+        "of every meta-task of the split (200 episodes on the 120-house test split), "
+        "deterministically (episode i gets seed SEED + i); --episodes all plays all five starts "
+        "(the paper's 1000), --episodes N an evenly spread subset. Every metric gets a 95 % "
+        "bootstrap interval over episodes (seeded) in summary.json.",
+    )
+    ev.add_argument(
+        "--policy",
+        required=True,
+        help="a team name: expert, random, sa, heuristic-none, heuristic-detection, "
+        "heuristic-broadcast, heuristic-central, hangrcom (an unknown name lists what is "
+        "registered), or a learned team's agent config (agents/*.yaml)",
+    )
+    ev.add_argument("--setting", default="I", help="I, II or a preset JSON file")
+    env_option(ev)
+    ev.add_argument("--split", default="test", choices=("train", "val", "test"))
+    ev.add_argument("--task-type", default="all", choices=("all", "single", "cross"))
+    ev.add_argument(
+        "--episodes",
+        default="standard",
+        help="standard (first start of every meta-task, the default), all, or a number N "
+        "(an evenly spread subset)",
+    )
+    ev.add_argument("--workers", type=int, default=1)
+    ray_option(ev)
+    ev.add_argument("--record", default="none", choices=("none", "failures", "all"))
+    ev.add_argument("--dataset", help="dataset directory (default: the env's shipped dataset)")
+    ev.add_argument("--seed", type=int, default=0)
+    ev.add_argument(
+        "--images",
+        action="store_true",
+        help="render every camera every step even for teams that ignore images (timing)",
+    )
+    ev.add_argument("--out", default=".", help="writes eval/results/... and recordings/... here")
+    ev.set_defaults(func=_eval)
+
+    po = sub.add_parser("policies", help="the teams `eval --policy` takes, what they see and send")
+    po.set_defaults(func=_policies)
+
+    lb = sub.add_parser("leaderboard", help="eval/LEADERBOARD.md and a plot from run summaries")
+    lb.add_argument("--root", default="eval", help="folder holding results/ (default eval)")
+    lb.set_defaults(func=_leaderboard)
+
+    cp = sub.add_parser(
+        "compare", help="two eval runs of the same episodes: paired differences of every metric"
+    )
+    cp.add_argument("a", help="run folder (eval/results/setting_I/NAME) or its episodes.jsonl")
+    cp.add_argument("b", help="the run to compare with, on the same split")
+    cp.set_defaults(func=_compare)
+
+    rp = sub.add_parser("replay", help="open an episode recording (.rrd) in the rerun viewer")
+    rp.add_argument("file")
+    rp.add_argument("--web", action="store_true", help="serve the web viewer instead")
+    rp.set_defaults(func=_replay)

@@ -1,0 +1,160 @@
+"""Commands that make demonstrations and train the learned models."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from maniskill_tidy.cli.options import ray_option
+
+TRAIN_DEFAULTS = {"dataset": "data/tidy120", "out": "agents/perception",
+                  "work": "data/perception", "seed": 0, "workers": 2,
+                  "env": "HeteroTidy-v1"}  # fmt: skip
+
+
+def _demos(args: argparse.Namespace) -> int:
+    if args.features:
+        from maniskill_tidy.training.decision_data import DemoConfig, build_demo_features
+
+        out = Path(args.out or "data/demos")
+        cfg = DemoConfig(args.setting, args.split, args.starts, args.tasks_per_house,
+                         args.houses, args.seed, args.teacher, args.student)  # fmt: skip
+        m = build_demo_features(out, args.dataset, cfg, workers=args.workers, ray=args.ray)
+        folder = out / f"setting_{args.setting}" / args.split
+        print(
+            f"{m['trajectories']} trajectories ({m['rows']} agent-steps, "
+            f"{m['bytes'] / 1e6:.0f} MB, {cfg.student or cfg.teacher} success "
+            f"{m['teacher_success']:.3f}) "
+            f"in {folder}"
+        )
+        return 0
+    if args.ray:
+        raise ValueError("--ray spreads the rendering of --features; add --features")
+    from maniskill_tidy.training.demonstrations import write_demonstrations
+
+    args.out = args.out or "data/trajectories"
+    m = write_demonstrations(
+        Path(args.out), args.dataset, args.split, args.setting, tasks=args.tasks, seed=args.seed
+    )
+    print(
+        f"wrote {m['trajectories']} trajectories ({m['steps']} steps, expert success "
+        f"{m['expert_success']:.3f}) to {Path(args.out) / f'setting_{args.setting}' / args.split}"
+    )
+    return 0
+
+
+def _train(args: argparse.Namespace) -> int:
+    from maniskill_tidy.policies.agent_config import is_qmix_config
+    from maniskill_tidy.training.qmix_trainer import train_qmix
+
+    if args.what != "perception":  # an agent config says where its model goes: eval reads it
+        given = [f"--{k}" for k in TRAIN_DEFAULTS if getattr(args, k) is not None]
+        if given:
+            raise ValueError(
+                f"{' '.join(given)} apply to `train perception`; an agent config sets them "
+                f"itself (out, dataset, work, workers, train.seed): write a config with "
+                f"`base: {args.what}` and the values to change"
+            )
+    for key, default in TRAIN_DEFAULTS.items():
+        if getattr(args, key) is None:
+            setattr(args, key, default)
+    if is_qmix_config(Path(args.what)):
+        card = train_qmix(Path(args.what), args.setting)
+        print(
+            f"{card['name']} Setting {args.setting}: {card['episodes']} episodes, "
+            f"{card['env_steps']} env steps in {card['train_seconds']:.0f} s; val success "
+            f"{card['val'].get('success', float('nan')):.2f}"
+        )
+        return 0
+    if args.what != "perception":
+        from maniskill_tidy.training.decision_trainer import train_decision
+
+        card = train_decision(Path(args.what), args.setting)
+        acc = card["val_inference_mode"]["accuracy"]
+        print(
+            f"{card['name']} Setting {args.setting}: trained in {card['train_seconds']:.0f} s "
+            f"(best epoch {card['best_epoch']}); val accuracy "
+            + ", ".join(f"{h} {a:.3f}" for h, a in acc.items() if a is not None)
+        )
+        return 0
+    from maniskill_tidy.tasks.dataset import read_manifest
+    from maniskill_tidy.training.perception_trainer import TrainConfig, train_perception
+
+    read_manifest(Path(args.dataset))  # a one-line error if it is not a dataset
+    cards = train_perception(
+        Path(args.dataset), Path(args.out), Path(args.work),
+        TrainConfig(seed=args.seed, env=args.env), workers=args.workers,
+    )  # fmt: skip
+    for variant, card in cards.items():
+        val = card["val"]
+        print(
+            f"{args.out}/{variant}: trained in {card['train_seconds']:.0f} s; val room accuracy "
+            f"{val['room']['accuracy']:.3f}, detector F1 {val['detector']['f1']:.3f}, "
+            f"receptacle top-1 {val['receptacle']['top1_reasonable_in_house']:.3f}"
+        )
+    return 0
+
+
+def _perception_report(args: argparse.Namespace) -> int:
+    from maniskill_tidy.training.perception_report import report
+
+    print(report(Path(args.agents), Path(args.dataset), args.split, Path(args.work), args.workers))
+    return 0
+
+
+def add_commands(sub: argparse._SubParsersAction) -> None:
+    dm = sub.add_parser("demos", help="expert demonstrations (sub-tasks, sub-goals) for a split")
+    dm.add_argument("--dataset", help="dataset directory (default: the env's shipped dataset)")
+    dm.add_argument("--setting", default="I")
+    dm.add_argument("--split", default="train", choices=("train", "val", "test"))
+    dm.add_argument("--tasks", type=int, help="only the first N meta-tasks (5 starts each)")
+    dm.add_argument("--seed", type=int, default=0)
+    dm.add_argument("--out", help="default data/trajectories, or data/demos with --features")
+    dm.add_argument(
+        "--features", action="store_true",
+        help="render every camera and store each agent's model inputs per step (for training)",
+    )  # fmt: skip
+    dm.add_argument("--starts", type=int, default=1, help="with --features: starts per meta-task")
+    dm.add_argument("--tasks-per-house", type=int, help="with --features: meta-tasks per house")
+    dm.add_argument("--houses", type=int, help="with --features: only the first N houses")
+    dm.add_argument("--workers", type=int, default=2, help="with --features: rendering processes")
+    ray_option(dm)
+    dm.add_argument(
+        "--teacher", default="expert",
+        help="with --features: the team whose labels are imitated (expert, heuristic-*)",
+    )  # fmt: skip
+    dm.add_argument(
+        "--student",
+        help="with --features: DAgger; this team (a policy or agent config) plays and the "
+        "teacher labels the states it reaches",
+    )
+    dm.set_defaults(func=_demos)
+
+    tr = sub.add_parser("train", help="train the paper's learned modules (CPU)")
+    tr.add_argument(
+        "what", help="`perception`, or an agent config (agents/hangrcom.yaml) to train by BC"
+    )
+    tr.add_argument("--setting", default="I", help="with an agent config: I or II")
+    tr.add_argument("--dataset", help="perception: dataset directory (data/tidy120)")
+    tr.add_argument("--out", help="perception: agent folder to write (agents/perception)")
+    tr.add_argument(
+        "--work", help="perception: views and resumable checkpoints, not shipped (data/perception)"
+    )
+    tr.add_argument("--seed", type=int, help="perception: seed (0)")
+    tr.add_argument(
+        "--env",
+        choices=("HeteroTidy-v1", "HeteroTidy-v2"),
+        help="perception: the look the views are rendered in (HeteroTidy-v1)",
+    )
+    tr.add_argument("--workers", type=int, help="perception: processes rendering the views (2)")
+    tr.set_defaults(func=_train)
+
+    pr = sub.add_parser(
+        "perception-report", help="perception figures of the shipped checkpoints, and a PNG"
+    )
+    pr.add_argument("--agents", default="agents/perception", help="agent folder")
+    pr.add_argument("--dataset", default="data/tidy120", help="dataset the agents were trained on")
+    pr.add_argument("--split", default="test", choices=("val", "test"))
+    pr.add_argument("--work", default="data/perception", help="where the split's views are kept")
+    pr.add_argument("--workers", type=int, default=2)
+    pr.set_defaults(func=_perception_report)

@@ -1,0 +1,23 @@
+"""The env's gymnasium ids, one per look, registered without importing ManiSkill.
+
+``import maniskill_tidy`` calls :func:`register_gym`; the env module registers itself with
+ManiSkill's ``register_env`` when it is first made, and registers these again after it.
+"""
+
+from __future__ import annotations
+
+ENV_ID = "HeteroTidy-v1"
+ENV_V2 = "HeteroTidy-v2"
+ENTRY_POINT = "maniskill_tidy.envs.hetero_tidy:HeteroTidyEnv"
+# An env version is a look: v1 draws flat-coloured primitives, v2 the derived meshes and
+# materials (sim/realistic.py). The task, the grid and the segmentation ids are the same.
+VERSIONS = {ENV_ID: "flat", ENV_V2: "realistic"}
+
+
+def register_gym() -> None:
+    """(Re-)register both versions with gymnasium; truncation is the env's own (300 steps)."""
+    import gymnasium as gym
+
+    for env_id, visuals in VERSIONS.items():
+        gym.registry.pop(env_id, None)
+        gym.register(env_id, entry_point=ENTRY_POINT, kwargs={"visuals": visuals})

@@ -1,0 +1,147 @@
+"""Saving and loading trained models: the decision team, the perception model and QMIX.
+
+Training writes these files, evaluation reads them; both sides import this module, so a team
+never reaches up into ``training/`` to load its weights. Weights are stored in fp16 next to
+their config; loading returns float32 modules in eval mode.
+
+A checkpoint is checked before it is used: ``card.json`` beside ``model.pt`` records the
+file's sha256 (``weights_sha256``), and a file that does not match it, or that torch cannot
+read, is refused in one line (:class:`CheckpointError`) before anything is written.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from maniskill_tidy.common.files import file_sha256, write_atomic
+from maniskill_tidy.knowledge import load_catalog
+from maniskill_tidy.knowledge.word_vectors import load_word_vectors
+from maniskill_tidy.models.decision import DecisionConfig, TeamDecision
+from maniskill_tidy.models.knowledge_graph import KnowledgeGraph
+from maniskill_tidy.models.perception import PerceptionConfig, PerceptionModel
+from maniskill_tidy.models.qmix import QmixTeamModel
+
+WEIGHTS = "model.pt"
+CARD = "card.json"
+
+
+class CheckpointError(ValueError):
+    """A checkpoint that is missing, unreadable or not the one its card describes."""
+
+
+def _half(model: torch.nn.Module) -> dict:
+    return {k: (v.half() if v.is_floating_point() else v) for k, v in model.state_dict().items()}
+
+
+def _float(state: dict) -> dict:
+    return {k: (v.float() if v.is_floating_point() else v) for k, v in state.items()}
+
+
+def save(folder: Path, payload: dict, config: dict | None = None) -> None:
+    """``payload`` (with its fp16 ``state``) as ``model.pt``, and ``config`` as config.json,
+    atomically."""
+    folder = Path(folder)
+    buf = io.BytesIO()
+    torch.save(payload, buf)
+    write_atomic(folder / WEIGHTS, buf.getvalue())
+    if config is not None:
+        write_atomic(folder / "config.json", json.dumps(config, indent=1).encode())
+
+
+def weights_sha256(folder: Path) -> str:
+    """What a card records of the weights it describes."""
+    return file_sha256(Path(folder) / WEIGHTS)
+
+
+def verify(folder: Path, train_hint: str) -> None:
+    """Refuse a missing, damaged or substituted ``model.pt`` in one line, before any work."""
+    path = Path(folder) / WEIGHTS
+    if not path.is_file():
+        raise CheckpointError(f"{path} not found; train it with `{train_hint}`")
+    card = Path(folder) / CARD
+    expected = json.loads(card.read_text()).get("weights_sha256") if card.is_file() else None
+    if expected is None:  # no card to compare with: at least torch must read it
+        _load(path, train_hint)
+    elif file_sha256(path) != expected:
+        raise CheckpointError(
+            f"{path}: sha256 differs from its card ({card.name} weights_sha256 "
+            f"{expected[:12]}...): the file is damaged or not the trained one; retrain with "
+            f"`{train_hint}` or restore it"
+        )
+
+
+def _load(path: Path, train_hint: str) -> dict:
+    try:
+        return torch.load(path, weights_only=False)
+    except Exception as err:  # torch raises several kinds for a damaged zip
+        raise CheckpointError(
+            f"{path}: not a readable checkpoint ({type(err).__name__}); expected a file "
+            f"written by `{train_hint}`"
+        ) from None
+
+
+def read(folder: Path, train_hint: str) -> dict:
+    """The saved payload, after checking the file against its card."""
+    verify(folder, train_hint)
+    return _load(Path(folder) / WEIGHTS, train_hint)
+
+
+# ----------------------------------------------------------------- the decision team
+def save_decision(model: TeamDecision, folder: Path, extra: dict) -> None:
+    payload = {"config": asdict(model.cfg), "agents": len(model.agents), "state": _half(model)}
+    payload |= extra
+    save(folder, payload, payload | {"state": None})
+
+
+def load_decision(folder: Path) -> tuple[TeamDecision, dict]:
+    """A trained team model and what was saved with it."""
+    saved = read(folder, "maniskill-tidy train CONFIG --setting S")
+    model = TeamDecision(DecisionConfig(**saved["config"]), saved["agents"])
+    model.load_state_dict(_float(saved["state"]))
+    return model.eval(), saved
+
+
+# ----------------------------------------------------------------------- perception
+def type_vectors() -> torch.Tensor:
+    """(K, word dim): the GloVe vectors of the catalog's categories, in channel order."""
+    vectors = load_word_vectors()
+    return torch.from_numpy(np.stack([vectors[c] for c in load_catalog().categories]))
+
+
+def save_perception(model: PerceptionModel, folder: Path) -> None:
+    payload = {"config": asdict(model.cfg), "nodes": list(model.nodes), "state": _half(model)}
+    save(folder, payload, asdict(model.cfg))
+
+
+def load_perception(folder: Path) -> PerceptionModel:
+    """A trained perception model, ready for inference; its knowledge graph is rebuilt from
+    the saved GCN buffers, so the train houses are not needed."""
+    saved = read(folder, "maniskill-tidy train perception")
+    state = saved["state"]
+    graph = KnowledgeGraph(
+        tuple(saved["nodes"]),
+        state["gcn.edge_index"],
+        state["gcn.edge_weight"].float(),
+        state["gcn.features"].float(),
+    )
+    model = PerceptionModel(PerceptionConfig(**saved["config"]), type_vectors(), graph)
+    model.load_state_dict(_float(state))
+    return model.eval()
+
+
+# ----------------------------------------------------------------------------- QMIX
+def save_qmix(model: QmixTeamModel, folder: Path, extra: dict) -> None:
+    save(folder, {"agents": model.n, "feature": model.feature, "state": _half(model), **extra})
+
+
+def load_qmix(folder: Path) -> tuple[QmixTeamModel, dict]:
+    saved = read(folder, "maniskill-tidy train agents/qmix.yaml --setting S")
+    model = QmixTeamModel(saved["agents"], saved["feature"])
+    model.load_state_dict(_float(saved["state"]))
+    return model.eval(), saved

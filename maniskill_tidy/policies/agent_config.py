@@ -1,0 +1,214 @@
+"""Agent configs (``agents/*.yaml``): what a learned team is, how it was trained, how it acts.
+
+Every config is read by one loader, :func:`read_config`, so ``base: OTHER.yaml`` works in
+all of them (QMIX's included); :func:`load_config` returns the right dataclass. Training and
+evaluation both read configs from here: a team never imports the trainer to find its model.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+
+import yaml
+
+from maniskill_tidy.knowledge import ROOM_TYPES, load_catalog
+from maniskill_tidy.models.communication import SCHEMES
+from maniskill_tidy.models.decision import DecisionConfig
+
+
+@dataclass(frozen=True)
+class TrainSettings:
+    epochs: int = 30
+    batch: int = 8  # episodes
+    lr: float = 1e-3
+    seed: int = 0
+    hard_fraction: float = 0.5
+    patience: int = 6  # epochs without a better val score before stopping
+    # "loss": the inference-mode val loss. "accuracy": the mean over heads of val accuracy
+    # above the most frequent label; the summed loss can rise on the rare object and
+    # receptacle heads, which grow over-confident, while the sub-goal heads still improve.
+    select: str = "loss"
+
+
+@dataclass(frozen=True)
+class ActSettings:
+    """How the learned team turns the heads into actions (``policies/learned.py``)."""
+
+    # None: the argmax of ope (the paper's decoding). A probability p: operate whenever an
+    # operation's probability exceeds p and the operation is possible now. PickUp is one step
+    # per pick in the demonstrations, so its probability rarely wins the argmax even where
+    # the model ranks those steps well (measured on val: README, "Where it stands").
+    ope_threshold: float | None = None
+    # Sample the sub-goal's dx, dy and drot from their heads (seeded per agent) instead of the
+    # argmax: the teacher's moves are spread over many cells, and the argmax of each axis
+    # alone names one fixed cell that an agent walks to, or stays at, step after step.
+    sample_subgoal: bool = False
+    # With sample_subgoal: draw from softmax(logits / T). Below 1 the draws stay nearer the
+    # likeliest cell (towards the argmax as T -> 0), above 1 they spread out.
+    subgoal_temperature: float = 1.0
+    # SA(Oracle) (paper Section 6.3): the misplaced objects' locations are given at reset. With
+    # nothing in hand the agent walks to the nearest one it has not picked up instead of
+    # exploring, and knows which objects in view are misplaced; the same trained model decides
+    # everything else. Its rows are marked privileged: it reads the task.
+    oracle: bool = False
+
+
+@dataclass(frozen=True)
+class AgentConfig:
+    """An agent config file (``agents/*.yaml``), checked on load."""
+
+    name: str
+    out: str  # where the trained model goes (a ``setting_S`` folder per setting)
+    perception: str = "agents/perception/knowledge"
+    dataset: str = "data/tidy120"
+    demos: str = "data/demos"
+    work: str = "data/decision"
+    workers: int = 2
+    train_demos: dict = field(default_factory=lambda: {"starts": 1, "tasks": 5})
+    val_demos: dict = field(default_factory=lambda: {"starts": 1, "tasks": 2})
+    model: dict = field(default_factory=dict)
+    train: dict = field(default_factory=dict)
+    act: dict = field(default_factory=dict)
+    notes: str = ""  # printed in the model card (e.g. why this many demonstrations)
+    # a team of its own, played in every setting (SA: [[1, 1, 1]], one manipulator); its
+    # teacher must play with the same team, and it is trained with --setting I
+    team: list | None = None
+    # demos roots whose train rows (same setting) join this config's own: DAgger aggregates the
+    # student's labelled rollouts with the teacher's trajectories; made by the config that owns them
+    also_train: list = field(default_factory=list)
+
+    @classmethod
+    def load(cls, path: Path) -> AgentConfig:
+        path = Path(path)
+        raw = read_config(path)
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(raw) - known)
+        if unknown:
+            raise ValueError(f"{path}: unknown keys {unknown}; expected some of {sorted(known)}")
+        for key in ("name", "out"):
+            if key not in raw:
+                raise ValueError(f"{path}: missing {key!r}")
+        cfg = cls(**raw)
+        for section, klass in (
+            ("model", DecisionConfig), ("train", TrainSettings), ("act", ActSettings),
+        ):  # fmt: skip
+            names = {f.name for f in fields(klass)}
+            bad = sorted(set(getattr(cfg, section)) - names)
+            if bad:
+                raise ValueError(f"{path}: unknown {section} keys {bad}; expected {sorted(names)}")
+        cfg.acting()  # checks the act section's values
+        scheme = cfg.model.get("communication", "hangrcom")
+        if scheme not in SCHEMES:
+            raise ValueError(
+                f"{path}: model communication {scheme!r}: expected one of {list(SCHEMES)}"
+            )
+        if cfg.model.get("goal_map") and not cfg.model.get("layout"):
+            raise ValueError(f"{path}: model goal_map needs layout: true (the goal is its channel)")
+        for section in ("train_demos", "val_demos"):
+            keys = {"starts", "tasks", "houses", "teacher", "student"}
+            bad = sorted(set(getattr(cfg, section)) - keys)
+            if bad:
+                raise ValueError(f"{path}: unknown {section} keys {bad}")
+        return cfg
+
+    def decision(self) -> DecisionConfig:
+        catalog = load_catalog()
+        return DecisionConfig(
+            categories=len(catalog.categories), objects=len(catalog.pickupable),
+            receptacles=len(catalog.receptacles), rooms=len(ROOM_TYPES), **self.model,
+        )  # fmt: skip
+
+    def acting(self) -> ActSettings:
+        a = ActSettings(**self.act)
+        if a.ope_threshold is not None and not 0 < a.ope_threshold < 1:
+            raise ValueError(f"act ope_threshold {a.ope_threshold!r}: expected a probability")
+        if not a.subgoal_temperature > 0:
+            raise ValueError(
+                f"act subgoal_temperature {a.subgoal_temperature!r}: expected a number above 0"
+            )
+        return a
+
+    def settings(self) -> TrainSettings:
+        s = TrainSettings(**self.train)
+        if s.select not in ("loss", "accuracy"):
+            raise ValueError(f"train select {s.select!r}: expected 'loss' or 'accuracy'")
+        return s
+
+
+def read_config(path: Path, seen: tuple[Path, ...] = ()) -> dict:
+    """A config's mapping; ``base: OTHER.yaml`` (relative to it) inherits OTHER's keys, the
+    sections (model, train, act, ...) merged key by key, so that a variant states only what it
+    changes."""
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such agent config (a YAML file under agents/)")
+    raw = yaml.safe_load(path.read_text()) or {}
+    if not isinstance(raw, dict):
+        raise ValueError(f"{path}: expected a mapping of settings, got {type(raw).__name__}")
+    if "base" not in raw:
+        return raw
+    base_path = (path.parent / str(raw.pop("base"))).resolve()
+    if base_path in seen:
+        raise ValueError(f"{path}: its base {base_path} inherits from itself")
+    merged = read_config(base_path, (*seen, path.resolve()))
+    for key, value in raw.items():
+        both = isinstance(value, dict) and isinstance(merged.get(key), dict)
+        merged[key] = {**merged[key], **value} if both else value
+    return merged
+
+
+@dataclass(frozen=True)
+class QmixConfig:
+    name: str
+    out: str
+    trainer: str = "qmix"
+    perception: str = "agents/perception/knowledge"
+    dataset: str = "data/tidy120"
+    work: str = "data/qmix"
+    episodes: int = 60  # the budget: training episodes
+    max_steps: int = 300
+    seed: int = 0
+    gamma: float = 0.99
+    lr: float = 5e-4
+    batch: int = 4  # episodes per update
+    buffer: int = 40  # the last episodes sampled from
+    updates: int = 4  # TD updates after each episode
+    target_every: int = 5  # episodes between copies to the target networks
+    epsilon: dict = field(default_factory=lambda: {"start": 1.0, "end": 0.05, "episodes": 40})
+    reward: dict = field(default_factory=lambda: {"placed": 1.0, "picked": 0.2, "step": -0.001})
+    val_episodes: int = 4  # greedy episodes on val for the card
+    notes: str = ""
+
+    @classmethod
+    def load(cls, path: Path) -> QmixConfig:
+        path = Path(path)
+        raw = read_config(path)
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(raw) - known)
+        if unknown:
+            raise ValueError(f"{path}: unknown keys {unknown}; expected some of {sorted(known)}")
+        for key in ("name", "out"):
+            if key not in raw:
+                raise ValueError(f"{path}: missing {key!r}")
+        cfg = cls(**raw)
+        if set(cfg.epsilon) != {"start", "end", "episodes"}:
+            raise ValueError(f"{path}: epsilon needs start, end and episodes, got {cfg.epsilon}")
+        if set(cfg.reward) != {"placed", "picked", "step"}:
+            raise ValueError(f"{path}: reward needs placed, picked and step, got {cfg.reward}")
+        if cfg.episodes < 1 or cfg.batch < 1:
+            raise ValueError(f"{path}: episodes and batch must be at least 1")
+        return cfg
+
+    def exploration(self, episode: int) -> float:
+        e = self.epsilon
+        frac = min(episode / max(e["episodes"], 1), 1.0)
+        return float(e["start"] + frac * (e["end"] - e["start"]))
+
+
+def is_qmix_config(path: Path) -> bool:
+    return Path(path).is_file() and read_config(Path(path)).get("trainer") == "qmix"
+
+
+def load_config(path: Path) -> AgentConfig | QmixConfig:
+    """Any agent config: QMIX's (``trainer: qmix``) or a hierarchical-decision team's."""
+    return QmixConfig.load(path) if is_qmix_config(path) else AgentConfig.load(path)
