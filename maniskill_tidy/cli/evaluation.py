@@ -126,7 +126,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
         required=True,
         help="a team name: expert, random, sa, heuristic-none, heuristic-detection, "
         "heuristic-broadcast, heuristic-central, hangrcom (an unknown name lists what is "
-        "registered), or a learned team's agent config (agents/*.yaml)",
+        "registered), or a learned team's agent config (agents/NAME.yaml)",
     )
     ev.add_argument("--setting", default="I", help="I, II or a preset JSON file")
     env_option(ev)

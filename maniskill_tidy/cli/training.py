@@ -121,7 +121,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     ray_option(dm)
     dm.add_argument(
         "--teacher", default="expert",
-        help="with --features: the team whose labels are imitated (expert, heuristic-*)",
+        help="with --features: the team whose labels are imitated (expert or a heuristic-... team)",
     )  # fmt: skip
     dm.add_argument(
         "--student",
