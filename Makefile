@@ -2,7 +2,7 @@
 PY := .venv/bin/python
 DEMO_DIR := out/demo
 
-.PHONY: setup test test-slow demo bench assets leaderboard leaderboard-v2 train train-all lint docs clean
+.PHONY: setup test test-slow demo bench assets leaderboard leaderboard-v2 train train-all lint docs wheel-check clean
 
 setup:
 	@bash scripts/setup.sh
@@ -10,6 +10,11 @@ setup:
 test: setup
 	$(PY) -m pytest -q
 	$(MAKE) --no-print-directory docs
+	bash scripts/wheel_check.sh
+
+# The wheel a user installs, in a fresh venv, run from outside the source tree (part of `test`).
+wheel-check: setup
+	bash scripts/wheel_check.sh
 
 test-slow: setup
 	$(PY) -m pytest -q -m slow
@@ -25,6 +30,7 @@ demo: setup
 	$(PY) -m maniskill_tidy.cli eval --policy expert --setting I --split test --episodes 5 --dataset $(DEMO_DIR)/dataset --record all --out $(DEMO_DIR)
 	$(PY) -m maniskill_tidy.cli eval --env HeteroTidy-v2 --policy expert --setting I --split test --episodes 5 --dataset $(DEMO_DIR)/dataset --out $(DEMO_DIR)
 	$(PY) -m maniskill_tidy.cli eval --policy heuristic-broadcast --setting I --split test --episodes 2 --dataset $(DEMO_DIR)/dataset --record all --out $(DEMO_DIR)
+	$(PY) -m maniskill_tidy.cli eval --policy hangrcom --setting I --split test --episodes 2 --dataset $(DEMO_DIR)/dataset --record all --out $(DEMO_DIR)
 	$(PY) -m maniskill_tidy.cli leaderboard --root $(DEMO_DIR)/eval
 	@echo "demo pictures: $(DEMO_DIR)/looks.png (v1 and v2) $(DEMO_DIR)/house.png $(DEMO_DIR)/dataset-stats.png $(DEMO_DIR)/episode/*.png $(DEMO_DIR)/map.png"
 	@echo "demo evaluation: $(DEMO_DIR)/eval/LEADERBOARD.md; recordings: $(DEMO_DIR)/recordings (maniskill-tidy replay FILE)"

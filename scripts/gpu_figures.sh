@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The README's GPU figures (issue 16), on a machine where SAPIEN finds a CUDA device:
+# The GPU figures in docs/scaling.md (issue 16), on a machine where SAPIEN finds a CUDA device:
 #   scripts/gpu_figures.sh OUT render   # CUDA-rendered expert traces (Setting I and II) for
 #                                       # `check-render --against` on a lavapipe machine, and
 #                                       # `bench --only env` (env steps/s at 224x224)

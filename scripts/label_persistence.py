@@ -2,7 +2,7 @@
 
 It is the validation accuracy that copying the previous label would score: a model that reads
 its own previous sub-task, as CentralComm.'s node does (the teacher's, in training and in the
-model card's validation figures), can reach it without choosing anything (README, "How each
+model card's validation figures), can reach it without choosing anything (docs/models.md, "How each
 differs from the paper's description").
 
     .venv/bin/python scripts/label_persistence.py data/demos_detection_3tasks/setting_I/val

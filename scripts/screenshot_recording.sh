@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# A PNG of the rerun viewer showing a recording (for the README), on a virtual screen.
+# A PNG of the rerun viewer showing a recording (for the docs), on a virtual screen.
 # Needs Debian's xvfb, x11-apps, xdotool and imagemagick (not in setup.sh: only docs need them).
 # Usage: scripts/screenshot_recording.sh FILE.rrd OUT.png [SECONDS]
 set -euo pipefail

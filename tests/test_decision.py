@@ -30,12 +30,9 @@ from maniskill_tidy.training.decision_data import (
     build_demo_features,
     load_demo_features,
 )
-from maniskill_tidy.training.decision_trainer import (
-    embed_split,
-    evaluate,
-    fit,
-    selection_score,
-)
+from maniskill_tidy.training.decision_features import embed_split
+from maniskill_tidy.training.decision_metrics import evaluate, selection_score
+from maniskill_tidy.training.decision_trainer import fit
 
 DEMOS = DemoConfig(setting="I", split="train", starts=1, tasks=1, houses=1)
 PERCEPTION = Path(__file__).resolve().parents[1] / "agents" / "perception" / "knowledge"
@@ -335,7 +332,7 @@ def test_an_ope_threshold_lets_a_likely_operation_win_over_the_argmax():
 
 
 def test_auc_is_the_chance_a_positive_outranks_a_negative():
-    from maniskill_tidy.training.decision_trainer import auc
+    from maniskill_tidy.training.decision_metrics import auc
 
     positive = torch.tensor([True, False, True, False])
     assert auc(torch.tensor([0.9, 0.1, 0.8, 0.2]), positive) == 1.0

@@ -14,7 +14,7 @@ def D():
 def test_type_counts_match_the_reference_data():
     c = load_catalog()
     assert len(c.pickupable) == 62
-    assert len(c.categories) == 119  # the paper reports 118; see README for the difference
+    assert len(c.categories) == 119  # the paper reports 118; see docs/task.md for the difference
     assert FLOOR in c.receptacles and "Fridge" in c.receptacles
     assert set(c.tidyable) < set(c.pickupable)
     assert "Plunger" not in c.tidyable  # AI2-THOR only ever has plungers on the floor

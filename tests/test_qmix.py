@@ -147,3 +147,18 @@ def test_the_qmix_team_sends_its_state_feature_and_acts_legally(tmp_path, monkey
         env.close()
     assert not check.bad and check.sent and all(check.sent)
     assert record.comm == check.expected > 0
+
+
+def test_a_qmix_config_inherits_from_its_base_like_every_agent_config(tmp_path):
+    """One loader for every agent config: ``base:`` works for QMIX too, and the inherited
+    ``trainer: qmix`` still makes it a QMIX config."""
+    from maniskill_tidy.policies.agent_config import is_qmix_config, load_config
+
+    shipped = Path(__file__).resolve().parents[1] / "agents" / "qmix.yaml"
+    variant = tmp_path / "qmix-short.yaml"
+    variant.write_text(f"base: {shipped}\nname: qmix-short\nout: {tmp_path / 'out'}\nepisodes: 3\n")
+    cfg = load_config(variant)
+    base = QmixConfig.load(shipped)
+    assert is_qmix_config(variant) and isinstance(cfg, QmixConfig)
+    assert (cfg.name, cfg.episodes) == ("qmix-short", 3)
+    assert (cfg.gamma, cfg.buffer, cfg.reward) == (base.gamma, base.buffer, base.reward)

@@ -19,24 +19,20 @@ from maniskill_tidy.perception.accuracy import (
     start_room_iou,
     survey_iou,
 )
+from maniskill_tidy.perception.crops import egocentric_crop, wide_layout
+from maniskill_tidy.perception.frontiers import find_frontiers
 from maniskill_tidy.perception.look_around import look_around
-from maniskill_tidy.perception.semantic_map import (
+from maniskill_tidy.perception.map_grid import (
     EXPLORED,
     FIRST_CATEGORY,
     FIRST_CHANNEL,
     FLOOR_LABEL,
     OBSTACLE,
-    MapConfig,
     MapFrame,
-    SemanticMap,
-    box_cells,
-    egocentric_crop,
-    find_frontiers,
-    open_links,
-    project_points,
-    share_maps,
-    wide_layout,
 )
+from maniskill_tidy.perception.map_sharing import share_maps
+from maniskill_tidy.perception.map_truth import box_cells, open_links
+from maniskill_tidy.perception.semantic_map import MapConfig, SemanticMap, project_points
 from maniskill_tidy.policies.channel import Channel
 
 TEAM = SURVEY_TEAM

@@ -83,7 +83,6 @@ def run_dir(out: Path, cfg: RunConfig) -> Path:
 def make_env(cfg: RunConfig, images: bool | str = False):
     import gymnasium as gym
 
-
     return gym.make(cfg.env, **cfg.env_kwargs(images))
 
 
@@ -248,11 +247,82 @@ def evaluate(
         model = getattr(team_cls, "model_hash", lambda team: None)(members)
         if model is not None:  # a learned team: resuming with other weights is refused below
             config["model_hash"] = model
-        config_path = directory / "run.json"
-        version = code_version()  # of the code that runs the episodes, taken before they run
-        versions = [version]
-        if config_path.exists():
-            before = json.loads(config_path.read_text())
+        run = RunFile(directory, config)
+        images = images or record == "all"  # else the team's own observations
+        jsonl = directory / "episodes.jsonl"
+        records = [r for r in read_records(jsonl) if r.episode in ids]
+        done = {r.episode for r in records}
+        todo = [i for i in chosen if episodes.get(i).id not in done]
+        bar = tqdm(
+            total=len(chosen),
+            initial=len(done),
+            desc=f"{cfg.policy} setting {cfg.setting} {cfg.split}",
+            unit="ep",
+            disable=not progress,
+        )
+        with open(jsonl, "a") as sink, bar:  # the bar closes on an error too
+            jobs = run_jobs(todo, _work, workers, init=_init_worker,
+                            initargs=(cfg, images, record, str(out)), ray=ray)  # fmt: skip
+            for _, r in jobs:
+                run.episode_done()  # before the episode's line: a killed session's share stays
+                sink.write(json.dumps(r.to_dict(), sort_keys=True) + "\n")
+                sink.flush()
+                os.fsync(sink.fileno())
+                records.append(r)
+                bar.update(1)
+                bar.set_postfix(success=f"{np.mean([x.success for x in records]):.3f}")
+        if record == "failures":
+            _record_failures(cfg, records, ids, out)
+        summary = _summary(cfg, team_cls, members, episodes.dataset_hash, config, run, records,
+                           workers, ray, images)  # fmt: skip
+        write_atomic(directory / "summary.json", json.dumps(summary, indent=1).encode())
+        return summary
+
+
+def _summary(
+    cfg: RunConfig, team_cls, members, dataset_hash: str, config: dict, run: RunFile,
+    records: list[EpisodeRecord], workers: int, ray: str | None, images: bool,
+) -> dict:  # fmt: skip
+    """``summary.json``: what ran, on what, with which code, and the metrics."""
+    return {
+        "policy": run_name(cfg),
+        "env": cfg.env,
+        "protocol": cfg.episodes
+        if isinstance(cfg.episodes, str)
+        else f"{cfg.episodes} evenly spread episodes",
+        "setting": cfg.setting,
+        "split": cfg.split,
+        "team": [list(c) for c in members],
+        "communication": getattr(team_cls, "communication", "none"),
+        "privileged": team_cls.privileged,
+        "perception": getattr(team_cls, "perception", ""),
+        "dataset": cfg.dataset or "default (shipped with the package)",
+        "dataset_hash": dataset_hash,
+        "model_hash": config.get("model_hash"),  # a learned team's weights; None otherwise
+        **run.versions(),
+        "seed": cfg.seed,
+        "episodes": len(records),
+        "metrics": summarize(records),
+        "wall_seconds": run.info["wall_seconds"],  # summed over sessions that ran episodes
+        "workers": workers,
+        "ray": ray,  # None: local processes; "local" or the cluster's address
+        "obs_mode": cfg.env_kwargs(images)["obs_mode"],
+        "episode_seconds_mean": round(float(np.mean([r.seconds for r in records])), 3),
+        "central_endpoint": CENTRAL if getattr(team_cls, "central", False) else None,
+    }
+
+
+class RunFile:
+    """A run's ``run.json``: its arguments, checked against the run it resumes, and the wall
+    time and code versions, summed over the sessions that played its episodes."""
+
+    def __init__(self, directory: Path, config: dict) -> None:
+        self.path = directory / "run.json"
+        self.version = code_version()  # of the code that runs the episodes, taken before
+        before = json.loads(self.path.read_text()) if self.path.exists() else None
+        self.before_versions = [self.version]
+        self.wall = 0.0
+        if before is not None:
             informative = ("dataset", "code_versions")  # a moved dataset with the same hash is fine
             # runs from before a field existed ran with its default (v1 before "env")
             defaults = {f.name: f.default for f in fields(RunConfig)}
@@ -266,84 +336,24 @@ def evaluate(
                     f"{directory} holds a run with other arguments {diff} (before, now); "
                     "pass another --out or delete that directory"
                 )
-            versions = before.get("code_versions", []) or [version]
-        wall = (
-            json.loads(config_path.read_text()).get("wall_seconds", 0.0)
-            if config_path.exists()
-            else 0.0
-        )
-        run_info = {**config, "code_versions": versions, "wall_seconds": wall}
-        write_atomic(config_path, json.dumps(run_info, indent=1, sort_keys=True).encode())
+            self.before_versions = before.get("code_versions", []) or [self.version]
+            self.wall = before.get("wall_seconds", 0.0)
+        self.info = {**config, "code_versions": self.before_versions, "wall_seconds": self.wall}
+        self._write()
+        self.started = time.perf_counter()
 
-        jsonl = directory / "episodes.jsonl"
-        records = [r for r in read_records(jsonl) if r.episode in ids]
-        done = {r.episode for r in records}
-        todo = [i for i in chosen if episodes.get(i).id not in done]
-        images = images or record == "all"  # else the team's own observations
-        started = time.perf_counter()
-        bar = tqdm(
-            total=len(chosen),
-            initial=len(done),
-            desc=f"{cfg.policy} setting {cfg.setting} {cfg.split}",
-            unit="ep",
-            disable=not progress,
-        )
-        with open(jsonl, "a") as sink:
+    def _write(self) -> None:
+        write_atomic(self.path, json.dumps(self.info, indent=1, sort_keys=True).encode())
 
-            def keep(r: EpisodeRecord) -> None:
-                # wall time and code versions accumulate over the sessions that ran episodes,
-                # kept before each episode's line: a killed session's share is not lost
-                run_info["wall_seconds"] = round(wall + time.perf_counter() - started, 1)
-                run_info["code_versions"] = list(dict.fromkeys([*versions, version]))
-                write_atomic(config_path, json.dumps(run_info, indent=1, sort_keys=True).encode())
-                sink.write(json.dumps(r.to_dict(), sort_keys=True) + "\n")
-                sink.flush()
-                os.fsync(sink.fileno())
-                records.append(r)
-                bar.update(1)
-                bar.set_postfix(success=f"{np.mean([x.success for x in records]):.3f}")
+    def episode_done(self) -> None:
+        self.info["wall_seconds"] = round(self.wall + time.perf_counter() - self.started, 1)
+        self.info["code_versions"] = list(dict.fromkeys([*self.before_versions, self.version]))
+        self._write()
 
-            with bar:  # closed on an error too, so the error starts a line of its own
-                for _, record_ in run_jobs(
-                    todo,
-                    _work,
-                    workers,
-                    init=_init_worker,
-                    initargs=(cfg, images, record, str(out)),
-                    ray=ray,
-                ):
-                    keep(record_)
-        versions = run_info["code_versions"]
-        if record == "failures":
-            _record_failures(cfg, records, ids, out)
-
-        summary = {
-            "policy": run_name(cfg),
-            "env": cfg.env,
-            "protocol": cfg.episodes
-            if isinstance(cfg.episodes, str)
-            else f"{cfg.episodes} evenly spread episodes",
-            "setting": cfg.setting,
-            "split": cfg.split,
-            "team": [list(c) for c in members],
-            "communication": getattr(team_cls, "communication", "none"),
-            "privileged": team_cls.privileged,
-            "perception": getattr(team_cls, "perception", ""),
-            "dataset": cfg.dataset or "default (shipped with the package)",
-            "dataset_hash": episodes.dataset_hash,
-            "model_hash": config.get("model_hash"),  # a learned team's weights; None otherwise
+    def versions(self) -> dict:
+        versions = self.info["code_versions"]
+        return {
             "code_version": versions[-1],
             "code_versions": versions,  # every version that ran part of this run (resumed runs)
             "mixed_code_versions": len(versions) > 1,
-            "seed": cfg.seed,
-            "episodes": len(records),
-            "metrics": summarize(records),
-            "wall_seconds": run_info["wall_seconds"],  # summed over sessions that ran episodes
-            "workers": workers,
-            "ray": ray,  # None: local processes; "local" or the cluster's address
-            "obs_mode": cfg.env_kwargs(images)["obs_mode"],
-            "episode_seconds_mean": round(float(np.mean([r.seconds for r in records])), 3),
-            "central_endpoint": CENTRAL if getattr(team_cls, "central", False) else None,
         }
-        write_atomic(directory / "summary.json", json.dumps(summary, indent=1).encode())
-        return summary

@@ -27,7 +27,10 @@ def draw_house(
     show_grid: bool = True,
     labels: bool = True,
 ) -> Path:
-    """Draw ``house`` to ``out``; ``highlight`` maps object ids to a colour (misplaced ones)."""
+    """Draw ``house`` to ``out``; ``highlight`` maps object ids to a colour (misplaced ones).
+
+    One figure drawn layer by layer (rooms, walls, doors, furniture, objects, labels,
+    legend), bottom to top; the layers share the axes and the scale, so they stay together."""
     highlight = highlight or {}
     xs = [p[0] for r in house.rooms for p in r.polygon]
     ys = [p[1] for r in house.rooms for p in r.polygon]

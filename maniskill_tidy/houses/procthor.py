@@ -93,6 +93,10 @@ def _list(d: dict, key: str, where: str, required: bool = True) -> list:
 
 
 def _import_house(d: dict, house_id: str) -> House:
+    """One ProcTHOR house dict as a House, every field checked with the path of what is wrong.
+
+    Long on purpose: it reads ProcTHOR's schema field by field in the schema's order (rooms,
+    doors, objects and their children), so that it reads beside the exporter."""
     where = house_id
     if not isinstance(d, dict):
         raise ProcTHORImportError(f"{where}: expected a house object, got {type(d).__name__}")

@@ -73,7 +73,10 @@ def _placed(item: Furniture | PlacedObject, asset: tuple[str, float]) -> dict:
 
 def export_house(house: House, left_out: Counter | None = None) -> dict:
     """``house`` as a ProcTHOR house dict; counts in ``left_out`` what has no asset, by type,
-    and what stood on such a piece, as "TYPE (on a piece left out)"."""
+    and what stood on such a piece, as "TYPE (on a piece left out)".
+
+    Long on purpose: it writes ProcTHOR's schema field by field in the schema's order (rooms,
+    walls, doors, objects and their children), so that it reads beside the importer."""
     left_out = left_out if left_out is not None else Counter()
     rooms = [
         {

@@ -65,7 +65,11 @@ def _load(reference: Path) -> tuple[dict, dict, dict, dict]:
 
 
 def derive(reference: Path) -> tuple[dict, dict, dict]:
-    """Return the (catalog, placement, assets) tables derived from ``reference``."""
+    """Return the (catalog, placement, assets) tables derived from ``reference``.
+
+    A maintainers' derivation (``derive-knowledge``), kept as one pass: each table is built
+    from the ones before it in the order the paper describes them, and the intermediate sets
+    are not meaningful on their own."""
     assets, annotations, receptacles, metadata = _load(reference)
 
     pickupable: set[str] = set()

@@ -21,10 +21,11 @@ the crop: the crop's pickupable-type channels weighted by F_a's softmax over ``o
 agent's hands are empty, its receptacle-type channels weighted by the softmax over ``p`` while it
 holds something. This is how the sub-goal is conditioned on the sub-task here (hierarchical
 decision); it is differentiable, so F_g's loss trains F_a's heads too. It is this project's
-addition to the paper's F_g inputs (``sm`` alone did not place a target: README, "The learned
-team"). With ``wide_layout`` F_g also reads ``sw``, a second CNN of the same shape over the
-agent's whole map at 1 m per cell (``semantic_map.wide_layout``): the 5 m crop rarely holds the
-frontier the exploring teacher walks to (on val it did not help: README, "The learned team").
+addition to the paper's F_g inputs (``sm`` alone did not place a target: docs/models.md,
+"The learned team"). With ``wide_layout`` F_g also reads ``sw``, a second CNN of the same
+shape over the agent's whole map at 1 m per cell (``crops.wide_layout``): the 5 m crop rarely
+holds the frontier the exploring teacher walks to (on val it did not help: docs/models.md,
+"The learned team").
 With ``suspects`` F_s also reads, per pickupable type, the detector's highest probability that
 a detection of that type is misplaced, in this frame and over the episode so far (a running
 maximum kept as part of F_s's recurrent state): on val, F_a named the teacher's target type on
@@ -45,7 +46,7 @@ from maniskill_tidy.envs.actions import Action
 from maniskill_tidy.knowledge import load_catalog
 from maniskill_tidy.models.communication import scheme
 from maniskill_tidy.models.hangrcom import DELTA, MU
-from maniskill_tidy.perception.semantic_map import EXPLORED, FIRST_CHANNEL, OBSTACLE
+from maniskill_tidy.perception.map_grid import EXPLORED, FIRST_CHANNEL, OBSTACLE
 
 POSE = 5  # x / 10 m, y / 10 m, cos and sin of the heading, camera pitch / 60 degrees
 HEADS_TASK = ("kind", "object", "receptacle", "room")

@@ -10,13 +10,9 @@ from matplotlib.path import Path as PolygonPath
 
 from maniskill_tidy.houses.schema import House
 from maniskill_tidy.perception.look_around import look_around
-from maniskill_tidy.perception.semantic_map import (
-    EXPLORED,
-    MapFrame,
-    SemanticMap,
-    ground_truth_obstacles,
-    obstacle_iou,
-)
+from maniskill_tidy.perception.map_grid import EXPLORED, MapFrame
+from maniskill_tidy.perception.map_truth import ground_truth_obstacles, obstacle_iou
+from maniskill_tidy.perception.semantic_map import SemanticMap
 from maniskill_tidy.tasks.metatask import apply_task
 
 SURVEY_TEAM = [[1, 0, 0], [1, 1, 1], [1, 0, 1]]  # low scout (0.22 m camera), manipulator, high

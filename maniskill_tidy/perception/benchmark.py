@@ -19,7 +19,8 @@ import numpy as np
 import open3d as o3d
 
 from maniskill_tidy.envs.benchmark import NAV_ONLY
-from maniskill_tidy.perception.semantic_map import MapConfig, TeamMaps
+from maniskill_tidy.perception.map_sharing import TeamMaps
+from maniskill_tidy.perception.semantic_map import MapConfig
 
 
 class TSDFMap:

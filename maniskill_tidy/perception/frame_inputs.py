@@ -13,7 +13,7 @@ Per frame (:class:`FrameInputs`):
   objects"; segmentation is ground truth, standing in for Mask R-CNN);
 - ``crop``: the map's egocentric crop, G x G x (K + 2) cells of 0.25 m (the scene encoder's);
 - ``wide``: a coarse egocentric view of the same map, 20 x 20 cells of 1 m, shares of obstacle,
-  explored and any-object (``semantic_map.wide_layout``; F_g's ``sw`` with ``wide_layout``), or
+  explored and any-object (``crops.wide_layout``; F_g's ``sw`` with ``wide_layout``), or
   None when the reader was made with ``wide=False`` (about 1 ms per frame, 5 % of an
   env step: `make bench`, map rows);
 - ``pose``: x, y, rotation and camera pitch; ``held``: the held object's type index or -1;

@@ -9,15 +9,10 @@ from pathlib import Path
 import numpy as np
 
 from maniskill_tidy.knowledge import load_catalog
-from maniskill_tidy.perception.semantic_map import (
-    EXPLORED,
-    FIRST_CHANNEL,
-    OBSTACLE,
-    SemanticMap,
-    egocentric_crop,
-    ground_truth_obstacles,
-    obstacle_iou,
-)
+from maniskill_tidy.perception.crops import egocentric_crop
+from maniskill_tidy.perception.map_grid import EXPLORED, FIRST_CHANNEL, OBSTACLE
+from maniskill_tidy.perception.map_truth import ground_truth_obstacles, obstacle_iou
+from maniskill_tidy.perception.semantic_map import SemanticMap
 from maniskill_tidy.sim.appearance import hashed_colour
 
 UNEXPLORED, FREE, BLOCKED = (255, 255, 255), (222, 222, 222), (95, 95, 95)

@@ -31,6 +31,10 @@ and the object the agent holds are left out of the map.
 
 The map frame is the house's navigation grid, subdivided: with 0.05 m cells five map cells
 make one 0.25 m planner cell, so :meth:`SemanticMap.planner_grid` is an exact max-pool.
+
+This module fuses frames; the grid and labels are ``map_grid.py``, what decisions read of a map
+``crops.py``, frontiers ``frontiers.py``, the ground truth ``map_truth.py``, a team's maps
+``map_sharing.py``.
 """
 
 from __future__ import annotations
@@ -40,14 +44,24 @@ from dataclasses import dataclass
 
 import numpy as np
 import open3d as o3d
-from scipy import ndimage
 
 from maniskill_tidy.houses.schema import House
 from maniskill_tidy.knowledge import load_catalog
+from maniskill_tidy.perception.crops import egocentric_crop, pool_to_planner, wide_layout
+from maniskill_tidy.perception.frontiers import Frontier, find_frontiers
+from maniskill_tidy.perception.map_grid import (
+    EXPLORED,
+    FIRST_CATEGORY,
+    FIRST_CHANNEL,
+    FLOOR_LABEL,
+    OBSTACLE,
+    OBSTACLE_BAND,
+    UNKNOWN,
+    WALL_LABEL,
+    MapFrame,
+    label_table,
+)
 
-UNKNOWN, FLOOR_LABEL, WALL_LABEL, FIRST_CATEGORY = 0, 1, 2, 3
-OBSTACLE, EXPLORED, FIRST_CHANNEL = 0, 1, 2
-OBSTACLE_BAND = (0.05, 1.6)  # metres above the floor that block a robot (the tallest is ~1.1 m)
 SEE_THROUGH = 0.1  # metres in front of the measured depth at which a stored voxel is gone
 INTO_SURFACE = 0.005  # metres a hit is pushed along the optical axis, past float noise
 FLOOR_HIT = 0.01  # metres: a pixel whose hit is lower sees the floor (not an obstacle's foot)
@@ -73,55 +87,6 @@ class MapConfig:
             raise ValueError(
                 f"MapConfig.stride and crop_size must be >= 1, got {self.stride}, {self.crop_size}"
             )
-
-
-@dataclass(frozen=True)
-class MapFrame:
-    """Where the map's cells lie: (x0, y0) of cell (0, 0)'s corner; rows run along +y."""
-
-    origin: tuple[float, float]
-    shape: tuple[int, int]
-    cell: float
-
-    @classmethod
-    def of_house(cls, house: House, cell: float) -> MapFrame:
-        nav = house.navgrid
-        if nav is None:
-            raise ValueError(f"house {house.id} has no navigation grid; generate it first")
-        ratio = nav.cell / cell
-        if abs(ratio - round(ratio)) > 1e-6:
-            raise ValueError(
-                f"map cell {cell} m must divide the planner cell {nav.cell} m "
-                "(e.g. 0.05 or 0.125) so that map cells nest in planner cells"
-            )
-        n = round(ratio)
-        return cls((nav.origin[0], nav.origin[1]), (nav.shape[0] * n, nav.shape[1] * n), cell)
-
-    def cells_of(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(rows, cols) of world points (N, 2); may lie outside the map."""
-        cols = np.floor((xy[:, 0] - self.origin[0]) / self.cell).astype(np.int64)
-        rows = np.floor((xy[:, 1] - self.origin[1]) / self.cell).astype(np.int64)
-        return rows, cols
-
-    def centres(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
-        return np.stack(
-            [self.origin[0] + (cols + 0.5) * self.cell, self.origin[1] + (rows + 0.5) * self.cell],
-            axis=-1,
-        )
-
-
-def label_table(instances: dict, categories: tuple[str, ...]) -> np.ndarray:
-    """Segmentation id -> voxel label: floor, wall, 3 + category index; robots and empty 0."""
-    index = {name: i for i, name in enumerate(categories)}
-    table = np.zeros(max(instances, default=0) + 1, dtype=np.uint8)
-    for sid, inst in instances.items():
-        if inst.kind == "floor":
-            table[sid] = FLOOR_LABEL
-        elif inst.kind == "wall":
-            table[sid] = WALL_LABEL
-        elif inst.type in index:
-            table[sid] = FIRST_CATEGORY + index[inst.type]
-    return table
 
 
 @dataclass(frozen=True)
@@ -473,212 +438,3 @@ def project_points(cam: np.ndarray, k: np.ndarray, shape: tuple[int, int]):
     return u, v, ahead & (u >= 0) & (u < w) & (v >= 0) & (v < h)
 
 
-def pool_to_planner(top_down: np.ndarray, planner_shape: tuple[int, int]) -> np.ndarray:
-    rows, cols = planner_shape
-    n = top_down.shape[0] // rows
-    if n * rows != top_down.shape[0] or n * cols != top_down.shape[1]:
-        raise ValueError(
-            f"map of {top_down.shape[:2]} cells does not tile a {planner_shape} planner grid"
-        )
-    return top_down.reshape(rows, n, cols, n, -1).max(axis=(1, 3))
-
-
-def egocentric_crop(
-    top_down: np.ndarray, frame: MapFrame, pose, size: int = 20, cell: float = 0.25
-) -> np.ndarray:
-    """(size, size, channels) crop centred on the agent and turned to its heading.
-
-    Row 0 is the far end ahead of the agent, column 0 its left; the agent stands at the centre.
-    A crop cell holds the maximum of the map cells whose centres fall in it (sampled on a grid
-    of map-cell spacing), so a 5 cm object is not lost in a 25 cm crop cell. Cells outside the
-    map are 0.
-    """
-    sub = max(int(round(cell / frame.cell)), 1)
-    return _egocentric_samples(top_down, frame, pose, size, cell, sub).max(axis=(1, 3))
-
-
-WIDE_SIZE = 20  # cells of the wide layout
-WIDE_CELL = 1.0  # metres per wide-layout cell: 20 m across, most of a house
-WIDE_SAMPLES = 4  # samples per cell side (every 0.25 m, the planner's grid)
-
-
-def wide_layout(
-    top_down: np.ndarray,
-    frame: MapFrame,
-    pose,
-    size: int = WIDE_SIZE,
-    cell: float = WIDE_CELL,
-    samples: int = WIDE_SAMPLES,
-) -> np.ndarray:
-    """(size, size, 3) uint8: per coarse cell, the share (0-255) of obstacle, explored and
-    any-object samples, oriented as :func:`egocentric_crop`.
-
-    The 5 m crop rarely holds the frontier an exploring teacher heads for; this coarse view of
-    the agent's own map does, and shares keep a half-explored cell apart from an explored one.
-    """
-    s = _egocentric_samples(top_down, frame, pose, size, cell, samples)
-    layout = np.stack(
-        [s[..., OBSTACLE], s[..., EXPLORED], s[..., FIRST_CHANNEL:].any(-1)], axis=-1
-    ).astype(np.float32)
-    return np.round(layout.mean(axis=(1, 3)) * 255).astype(np.uint8)
-
-
-def _egocentric_samples(
-    top_down: np.ndarray, frame: MapFrame, pose, size: int, cell: float, sub: int
-) -> np.ndarray:
-    """(size, sub, size, sub, channels): the map read at ``sub`` x ``sub`` points per crop
-    cell of an egocentric grid (0 outside the map)."""
-    x, y, rotation = (float(v) for v in pose)
-    yaw = math.radians(rotation)
-    fwd = np.array([math.cos(yaw), math.sin(yaw)])
-    right = np.array([math.sin(yaw), -math.cos(yaw)])
-    offsets = (np.arange(size * sub) + 0.5) / sub - size / 2  # crop cells from the centre
-    ahead = -offsets * cell  # row index grows away from "ahead"
-    side = offsets * cell
-    a, s = np.meshgrid(ahead, side, indexing="ij")
-    world = np.stack([x + a * fwd[0] + s * right[0], y + a * fwd[1] + s * right[1]], axis=-1)
-    rows, cols = frame.cells_of(world.reshape(-1, 2))
-    inside = (rows >= 0) & (rows < top_down.shape[0]) & (cols >= 0) & (cols < top_down.shape[1])
-    samples = np.zeros((len(rows), top_down.shape[2]), dtype=top_down.dtype)
-    samples[inside] = top_down[rows[inside], cols[inside]]
-    return samples.reshape(size, sub, size, sub, -1)
-
-
-@dataclass(frozen=True)
-class Frontier:
-    """A connected stretch of explored free cells bordering unexplored ones."""
-
-    cells: np.ndarray  # (N, 2) map (row, col)
-    centroid: tuple[float, float]  # world (x, y) of the frontier cell nearest the mean
-
-    @property
-    def size(self) -> int:
-        return len(self.cells)
-
-
-def find_frontiers(top_down: np.ndarray, frame: MapFrame, min_cells: int = 5) -> list[Frontier]:
-    """Frontiers, largest first; clusters under ``min_cells`` cells (noise) are dropped."""
-    explored = top_down[..., EXPLORED].astype(bool)
-    free = explored & ~top_down[..., OBSTACLE].astype(bool)
-    unexplored_near = ndimage.binary_dilation(~explored, structure=np.ones((3, 3), bool))
-    edge = free & unexplored_near
-    labels, n = ndimage.label(edge, structure=np.ones((3, 3), bool))
-    out = []
-    for i in range(1, n + 1):
-        cells = np.argwhere(labels == i)
-        if len(cells) < min_cells:
-            continue
-        mean = cells.mean(axis=0)
-        r, c = cells[np.argmin(((cells - mean) ** 2).sum(axis=1))]
-        x, y = frame.centres(np.array(r), np.array(c))
-        out.append(Frontier(cells, (float(x), float(y))))
-    return sorted(out, key=lambda f: -f.size)
-
-
-def merge(maps: list[np.ndarray]) -> np.ndarray:
-    """The team map: a cell holds what any agent's map holds there (maps share one frame)."""
-    if not maps:
-        raise ValueError("merge needs at least one map")
-    shapes = {m.shape for m in maps}
-    if len(shapes) != 1:
-        raise ValueError(f"maps to merge must share one frame and channels, got shapes {shapes}")
-    return np.maximum.reduce(maps)
-
-
-def share_maps(maps: dict[str, SemanticMap], channel) -> np.ndarray:
-    """Broadcast every agent's top-down map to the others through ``channel`` (which counts
-    rows x cols x (K + 2) values per receiver) and return the merged team map."""
-    names = list(maps)
-    for name, m in maps.items():
-        others = [n for n in names if n != name]
-        if others:
-            channel.send(name, others, m.top_down(), kind="map")
-    return merge([m.top_down() for m in maps.values()])
-
-
-def box_cells(frame: MapFrame, centre, w: float, d: float, yaw: float, pad: float) -> np.ndarray:
-    """(rows, cols) bool: cells whose centre lies within ``pad`` of a (w x d) box turned by
-    ``yaw`` about ``centre``, measured in the box's own frame."""
-    r, c = np.mgrid[0 : frame.shape[0], 0 : frame.shape[1]]
-    xy = frame.centres(r, c)
-    cos, sin = math.cos(yaw), math.sin(yaw)
-    px, py = xy[..., 0] - centre[0], xy[..., 1] - centre[1]
-    lx, ly = cos * px + sin * py, -sin * px + cos * py
-    return (np.abs(lx) < w / 2 + pad) & (np.abs(ly) < d / 2 + pad)
-
-
-def ground_truth_obstacles(house: House, frame: MapFrame) -> np.ndarray:
-    """(rows, cols) bool: cells that walls (door openings cut out), furniture and objects
-    reaching into ``OBSTACLE_BAND`` overlap, rasterised from the house spec.
-
-    A cell counts when the box covers more than a millimetre of it, as a map cell counts when
-    any hit falls in it; boxes are tested in their own frame (exact for axis-aligned ones)."""
-    from maniskill_tidy.houses.navgrid import solid_wall_segments
-
-    pad = frame.cell / 2 - 1e-3
-    boxes = [
-        (
-            [(a[0] + b[0]) / 2, (a[1] + b[1]) / 2],
-            math.dist(a, b),
-            t,
-            math.atan2(b[1] - a[1], b[0] - a[0]),
-        )
-        for a, b, t in solid_wall_segments(house)
-    ]
-    for f in [*house.furniture, *house.objects]:
-        z0, z1 = f.position[2], f.position[2] + f.size[2]
-        if z1 >= OBSTACLE_BAND[0] and z0 <= OBSTACLE_BAND[1]:
-            boxes.append((f.position, f.size[0], f.size[1], f.yaw))
-    for f in house.furniture:
-        boxes.extend(open_links(f))
-    out = np.zeros(frame.shape, dtype=bool)
-    for centre, w, d, yaw in boxes:
-        out |= box_cells(frame, centre, w, d, yaw, pad)
-    return out
-
-
-def obstacle_iou(top_down: np.ndarray, truth: np.ndarray, region: np.ndarray) -> float:
-    """IoU of the map's obstacle channel with ``truth`` over the cells of ``region``."""
-    mapped = (top_down[..., OBSTACLE] > 0) & region
-    truth = truth & region
-    return float((mapped & truth).sum() / max((mapped | truth).sum(), 1))
-
-
-def open_links(f) -> list[tuple[list[float], float, float, float]]:
-    """World (centre, w, d, yaw) of ``f``'s doors and drawers at the episodes' open position."""
-    from maniskill_tidy.sim.house_scene import open_position
-
-    out = []
-    c, s = math.cos(f.yaw), math.sin(f.yaw)
-    for j in f.joints:
-        q = open_position(j)
-        (lx, ly), (ox, oy) = j.link_center[:2], j.origin[:2]
-        yaw = 0.0
-        if j.type == "revolute":  # about a vertical hinge through the joint's origin
-            angle = q * (1.0 if j.axis[2] >= 0 else -1.0)
-            dx, dy = lx - ox, ly - oy
-            lx = ox + math.cos(angle) * dx - math.sin(angle) * dy
-            ly = oy + math.sin(angle) * dx + math.cos(angle) * dy
-            yaw = angle
-        else:
-            lx, ly = lx + q * j.axis[0], ly + q * j.axis[1]
-        centre = [f.position[0] + c * lx - s * ly, f.position[1] + s * lx + c * ly]
-        out.append((centre, j.link_size[0], j.link_size[1], f.yaw + yaw))
-    return out
-
-
-class TeamMaps:
-    """Every agent's map of the current house, fed from the env's per-agent observations."""
-
-    def __init__(self, house: House, instances: dict, agents: list[str], config=None) -> None:
-        self.maps = {a: SemanticMap(house, instances, config) for a in agents}
-
-    def update(self, obs: dict) -> None:
-        for name, m in self.maps.items():
-            m.update(obs[name])
-
-    def merged(self) -> np.ndarray:
-        return merge([m.top_down() for m in self.maps.values()])
-
-    def share(self, channel) -> np.ndarray:
-        return share_maps(self.maps, channel)

@@ -38,7 +38,7 @@ class ActSettings:
     # None: the argmax of ope (the paper's decoding). A probability p: operate whenever an
     # operation's probability exceeds p and the operation is possible now. PickUp is one step
     # per pick in the demonstrations, so its probability rarely wins the argmax even where
-    # the model ranks those steps well (measured on val: README, "Where it stands").
+    # the model ranks those steps well (measured on val: docs/models.md, "Where it stands").
     ope_threshold: float | None = None
     # Sample the sub-goal's dx, dy and drot from their heads (seeded per agent) instead of the
     # argmax: the teacher's moves are spread over many cells, and the argmax of each axis

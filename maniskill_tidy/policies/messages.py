@@ -24,13 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from maniskill_tidy.knowledge import ROOM_TYPES, load_catalog
-from maniskill_tidy.perception.semantic_map import (
-    EXPLORED,
-    FIRST_CATEGORY,
-    FIRST_CHANNEL,
-    OBSTACLE,
-    SemanticMap,
-)
+from maniskill_tidy.perception.map_grid import EXPLORED, FIRST_CATEGORY, FIRST_CHANNEL, OBSTACLE
+from maniskill_tidy.perception.semantic_map import SemanticMap
 from maniskill_tidy.policies.base import EXPLORE, PLACE, SubTask
 
 STATE_DIMS = 10

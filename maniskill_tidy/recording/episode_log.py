@@ -100,7 +100,7 @@ class EpisodeRecorder:
         first = next(iter(obs.values()), {})
         self.maps = None
         if "depth" in first and "segmentation" in first:
-            from maniskill_tidy.perception.semantic_map import TeamMaps
+            from maniskill_tidy.perception.map_sharing import TeamMaps
 
             self.maps = TeamMaps(env.house, env.instances, [a.name for a in env.agents])
         self.rec.send_blueprint(layout([a.name for a in env.agents], self.maps is not None))
@@ -261,7 +261,7 @@ class EpisodeRecorder:
         """Class images of every agent's map and the team's; the fused voxels if ``points``
         (voxel labels double as class ids: 2 wall, 3 + k category k; floor voxels left out)."""
         from maniskill_tidy.perception.map_figure import map_classes
-        from maniskill_tidy.perception.semantic_map import WALL_LABEL
+        from maniskill_tidy.perception.map_grid import WALL_LABEL
 
         rec = self.rec
         for name, m in self.maps.maps.items():

@@ -60,7 +60,11 @@ def slab(w: float, d: float, z: float, colour: RGB, y: float = 0.0) -> Part:
 
 
 def body_parts(f: Furniture) -> list[Part]:
-    """The fixed part of a piece (the root link of an articulated one)."""
+    """The fixed part of a piece (the root link of an articulated one).
+
+    A catalogue, one branch per furniture type, read as a table: the branches share the
+    piece's size and shades, and each is a few boxes; split into functions the shapes of one
+    family would sit apart from the measures they use."""
     w, d, h = f.size
     c = furniture_colour(f.type)
     dark, light = shade(c, 0.7), shade(c, 1.15)

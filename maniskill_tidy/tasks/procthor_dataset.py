@@ -93,7 +93,11 @@ def generate_procthor_dataset(
 ) -> dict:
     """Build a dataset in ``out`` from the ProcTHOR houses of ``source`` (at most ``limit``
     of them, from the top of the file); returns the manifest. ``ray``: on Ray actors (see
-    :mod:`maniskill_tidy.common.parallel`)."""
+    :mod:`maniskill_tidy.common.parallel`).
+
+    One function on purpose: the steps (read, import and repair each house, split, write the
+    shards, the manifest with every rejection's reason) run in the order the manifest records
+    them, and each step's output is the next one's only input."""
     source, out = Path(source), Path(out)
     if not source.is_file():
         raise FileNotFoundError(f"--procthor {source}: no such ProcTHOR house file")

@@ -5,14 +5,14 @@ rendering every camera. The paper's teacher is the privileged expert (``policies
 any team that labels its steps with sub-tasks and sub-goals can teach (``teacher``: the
 camera-only heuristic teams of ``policies/heuristic.py`` do), which matters because a student
 that sees only through its cameras cannot imitate an expert that walks straight to objects
-nobody has seen (README, "The learned team"). Each agent fuses its own semantic map
+nobody has seen (docs/models.md, "The learned team"). Each agent fuses its own semantic map
 and reads its inputs off its own observation with :class:`FrameReader`, the code the learned
 team runs at evaluation. Per agent and step (one *row*) a shard stores
 
 - the model's inputs: ``rgb`` (64 x 64), ``seen`` (image share per category), ``crop`` (the map's
   20 x 20 x (K + 2) egocentric crop, bit-packed: 6050 bytes that zlib shrinks to a few hundred,
   smaller than a label image and lossless where a cell holds several categories), ``wide`` (the
-  map's coarse 20 x 20 x 3 egocentric layout, uint8 shares: ``semantic_map.wide_layout``), ``pose``,
+  map's coarse 20 x 20 x 3 egocentric layout, uint8 shares: ``crops.wide_layout``), ``pose``,
   ``capability``, ``held`` (type or -1), ``failed`` (its own last action failed), and one
   detection per pickupable object in view (``det_row``, ``det_type``, ``det_rest``,
   ``det_numeric``: the inputs of ``sl``);
@@ -54,8 +54,8 @@ from tqdm import tqdm
 from maniskill_tidy.common.files import write_atomic
 from maniskill_tidy.envs.actions import Action, Targeted
 from maniskill_tidy.knowledge import ROOM_TYPES, load_catalog
+from maniskill_tidy.perception.crops import WIDE_SIZE
 from maniskill_tidy.perception.frame_inputs import DETECTION_NUMERIC, IMAGE, FrameReader
-from maniskill_tidy.perception.semantic_map import WIDE_SIZE
 from maniskill_tidy.policies.base import OPERATIONS, PLACE
 from maniskill_tidy.tasks.teams import team as parse_team
 from maniskill_tidy.training.house_jobs import (

@@ -21,291 +21,35 @@ The same seed gives the same weights.
 from __future__ import annotations
 
 import copy
-import hashlib
 import io
 import json
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 import torch
-import torch.nn.functional as F
-from scipy.stats import rankdata
 from tqdm import tqdm
 
 from maniskill_tidy.common.files import write_atomic
-from maniskill_tidy.knowledge import load_catalog
 from maniskill_tidy.models.checkpoints import save_decision, weights_sha256
-from maniskill_tidy.models.communication import TASK, scheme
 from maniskill_tidy.models.decision import (
-    HEADS_GOAL,
-    HEADS_TASK,
-    DecisionConfig,
     TeamDecision,
-    crop_goal,
-    crop_layout,
-    suspects,
 )
 from maniskill_tidy.policies.agent_config import AgentConfig, TrainSettings
-from maniskill_tidy.policies.base import OPERATIONS
 from maniskill_tidy.tasks.teams import SETTINGS
+from maniskill_tidy.training.decision_card import model_card, split_size
 from maniskill_tidy.training.decision_data import DemoConfig, build_demo_features
+from maniskill_tidy.training.decision_features import Rows, embed_split, used_input
+from maniskill_tidy.training.decision_metrics import bc_loss, evaluate, selection_score
 
-FEATURES = ("sv", "sm", "fd", "fp")  # 256-d each, cached as fp16
-SCALARS = ("mis", "det", "failed")
-LABELS = HEADS_TASK + HEADS_GOAL
-DIRECT = ("action", "receptacle")  # w/o HierDec.'s heads
-OFFSET = {"dx": 4, "dy": 4}  # -4..4 -> class 0..8
-
-
-# ------------------------------------------------------------------- features of every row
-@dataclass
-class Rows:
-    """Per-row tensors of one split, and the (episode, step, agent) -> row index."""
-
-    x: dict[str, torch.Tensor]
-    y: dict[str, torch.Tensor]
-    index: torch.Tensor  # (E, T, N) row or -1
-    hash: str
-
-    @property
-    def episodes(self) -> int:
-        return self.index.shape[0]
-
-    def __add__(self, other: Rows) -> Rows:
-        """Both splits' rows as one (episodes of ``other`` after ours; same team size)."""
-        if self.index.shape[-1] != other.index.shape[-1]:
-            raise ValueError(f"rows of {self.index.shape[-1]} and {other.index.shape[-1]} agents")
-        steps = max(self.index.shape[1], other.index.shape[1])
-        n = len(next(iter(self.y.values())))
-
-        def padded(index: torch.Tensor, offset: int) -> torch.Tensor:
-            out = torch.full((index.shape[0], steps, index.shape[2]), -1, dtype=torch.long)
-            out[:, : index.shape[1]] = torch.where(index >= 0, index + offset, -1)
-            return out
-
-        if set(self.x) != set(other.x):  # both come from one FEATURES_VERSION, so never expected
-            raise ValueError(f"rows with inputs {sorted(self.x)} and {sorted(other.x)}")
-        return Rows(
-            {k: torch.cat([self.x[k], other.x[k]]) for k in self.x},
-            {k: torch.cat([self.y[k], other.y[k]]) for k in self.y},
-            torch.cat([padded(self.index, 0), padded(other.index, n)]),
-            f"{self.hash}+{other.hash}",
-        )
-
-    def batch(self, episodes: np.ndarray) -> tuple[list[dict], torch.Tensor, list[dict]]:
-        """Agent-wise inputs and labels (B, T, ·) of some episodes, and ``present`` (B, T, N)."""
-        idx = self.index[torch.as_tensor(episodes)]
-        t = int((idx >= 0).any(-1).any(0).nonzero().max()) + 1
-        idx = idx[:, :t]
-        present = idx >= 0
-        safe = idx.clamp(min=0)
-        xs, ys = [], []
-        for n in range(idx.shape[-1]):
-            rows = safe[:, :, n]
-            xs.append({k: v[rows].float() if v.is_floating_point() else v[rows]
-                       for k, v in self.x.items()})  # fmt: skip
-            ys.append({k: torch.where(present[:, :, n], v[rows], -1) for k, v in self.y.items()})
-        for xn, yn in zip(xs, ys, strict=True):  # the sub-task a state message carries
-            task = torch.stack([yn[k] for k in TASK], dim=-1)
-            xn["prev_task"] = torch.cat([torch.full_like(task[:, :1], -1), task[:, :-1]], dim=1)
-        return xs, present, ys
-
-
-FEATURES_VERSION = 5  # 2: the crop's layout; 3: its goal channels (crop_goal); 4: the wide layout;
 # 5: the per-type misplaced probabilities (models.decision.suspects)
-
-
-def _feature_hash(demos_hash: str, perception: Path) -> str:
-    digest = hashlib.sha256(f"{FEATURES_VERSION}:{demos_hash}".encode())
-    digest.update(hashlib.sha256((perception / "model.pt").read_bytes()).digest())
-    return digest.hexdigest()[:16]
-
-
-@torch.no_grad()
-def embed_split(directory: Path, perception_dir: Path, cache: Path, progress: bool = True) -> Rows:
-    """Run the frozen perception over every row of a demos folder (cached by hash)."""
-    from maniskill_tidy.models.checkpoints import load_perception
-
-    manifest = json.loads((directory / "manifest.json").read_text())
-    key = _feature_hash(manifest["demos_hash"], perception_dir)
-    path = cache / f"features_{key}.pt"
-    if path.is_file():
-        saved = torch.load(path, weights_only=False)
-        saved["y"]["action"] = action_labels(directory)
-        return Rows(saved["x"], saved["y"], saved["index"], key)
-    perception = load_perception(perception_dir)
-    k = perception.cfg.categories
-    shards = sorted(directory.glob("house_*.npz"))
-    parts: dict[str, list] = {}
-    keys: list[tuple[int, int, int]] = []
-    episodes = 0
-    for shard in tqdm(shards, desc=f"features {directory.parent.name} {directory.name}",
-                      unit="house", disable=not progress):  # fmt: skip
-        with np.load(shard) as z:
-            d = {name: z[name] for name in z.files}
-        n = len(d["t"])
-        g = perception.cfg.crop
-        for start in range(0, n, 512):
-            sl = slice(start, min(start + 512, n))
-            rows = np.arange(sl.start, sl.stop)
-            dets = np.flatnonzero(np.isin(d["det_row"], rows))
-            crop = np.unpackbits(d["crop"][sl], axis=1)[:, : g * g * (k + 2)]
-            f = perception.step_features(
-                torch.from_numpy(d["rgb"][sl]),
-                torch.from_numpy(d["seen"][sl].astype(np.float32)),
-                torch.from_numpy(crop.reshape(-1, g, g, k + 2)),
-                torch.from_numpy(d["det_row"][dets] - sl.start).long(),
-                torch.from_numpy(d["det_type"][dets]).long(),
-                torch.from_numpy(d["det_rest"][dets]).long(),
-                torch.from_numpy(d["det_numeric"][dets]),
-            )
-            for name in FEATURES:
-                parts.setdefault(name, []).append(f[name].half())
-            for name in ("mis", "det"):
-                parts.setdefault(name, []).append(f[name])
-            suspect = suspects(torch.from_numpy(d["det_row"][dets] - sl.start),
-                               torch.from_numpy(d["det_type"][dets]), f["p_detections"],
-                               sl.stop - sl.start, len(load_catalog().pickupable))  # fmt: skip
-            parts.setdefault("suspect", []).append(suspect.half())
-            layout = crop_layout(crop.reshape(-1, g, g, k + 2))
-            parts.setdefault("layout", []).append(torch.from_numpy(layout))
-            goal = crop_goal(crop.reshape(-1, g, g, k + 2))
-            parts.setdefault("goal", []).append(torch.from_numpy(goal))
-            parts.setdefault("wide", []).append(torch.from_numpy(d["wide"][sl]))
-        parts.setdefault("pose", []).append(torch.from_numpy(d["pose"]))
-        for name in ("failed", "capability", "held", *LABELS):
-            parts.setdefault(name, []).append(torch.from_numpy(d[name].astype(np.int64)))
-        for e, t, a in zip(d["episode"], d["t"], d["agent"], strict=True):
-            keys.append((episodes + int(e), int(t), int(a)))
-        episodes += len(json.loads(str(d["episodes"])))
-    cat = {name: torch.cat(v) for name, v in parts.items()}
-    x = {name: cat[name]
-         for name in (*FEATURES, "mis", "det", "suspect", "layout", "goal", "wide")}  # fmt: skip
-    x["failed"] = cat["failed"].float()
-    x["pose"] = cat["pose"].float()
-    x["va"] = cat["capability"].float()
-    x["held"] = cat["held"]
-    y = {name: cat[name] + OFFSET.get(name, 0) for name in LABELS}
-    agents = max(a for _, _, a in keys) + 1
-    steps = max(t for _, t, _ in keys) + 1
-    index = torch.full((episodes, steps, agents), -1, dtype=torch.long)
-    e, t, a = (torch.tensor(c) for c in zip(*keys, strict=True))
-    index[e, t, a] = torch.arange(len(keys))
-    cache.mkdir(parents=True, exist_ok=True)
-    buf = io.BytesIO()
-    torch.save({"x": x, "y": y, "index": index}, buf)
-    write_atomic(path, buf.getvalue())
-    y["action"] = action_labels(directory)
-    return Rows(x, y, index, key)
-
-
-def used_input(name: str, cfg: DecisionConfig) -> bool:
-    """Whether a model with ``cfg`` reads the cached input ``name`` (the goal channels are
-    340 MB per 63k rows)."""
-    return {"layout": cfg.layout, "goal": cfg.goal_map, "wide": cfg.wide_layout,
-            "suspect": cfg.suspects}.get(name, True)  # fmt: skip
-
-
-# ------------------------------------------------------------------- loss and metrics
-def bc_loss(out: list[dict], ys: list[dict]) -> torch.Tensor:
-    """Eq. 2 summed over the agents: Loss_subtask + Loss_subgoal, every weight 1 (w/o HierDec.:
-    the cross-entropy of the low-level action and of the receptacle)."""
-    total = torch.zeros(())
-    for logits, y in zip(out, ys, strict=True):
-        for head in logits:
-            target = y[head]
-            if (target >= 0).any():
-                total = total + F.cross_entropy(
-                    logits[head].flatten(0, 1), target.flatten(), ignore_index=-1
-                )
-    return total
-
-
-@torch.no_grad()
-def evaluate(model: TeamDecision, rows: Rows, hard: bool, batch: int = 16) -> dict:
-    """Mean loss per episode batch, each head's accuracy over the labelled rows, and how well
-    each operation's probability ranks the steps labelled with it (``ope_auc``: the act
-    section's ``ope_threshold`` relies on that ranking, not on the argmax)."""
-    model.eval()
-    heads = model_heads(model.cfg)
-    correct = {h: 0 for h in heads}
-    count = {h: 0 for h in heads}
-    losses = []
-    ope_p, ope_y = [], []
-    for start in range(0, rows.episodes, batch):
-        xs, present, ys = rows.batch(np.arange(start, min(start + batch, rows.episodes)))
-        out, info = model(xs, present, hard=hard, labels=ys)
-        losses.append(float(bc_loss(out, ys) + info["aux"]))
-        for logits, y in zip(out, ys, strict=True):
-            for head in heads:
-                ok = y[head] >= 0
-                correct[head] += int((logits[head].argmax(-1)[ok] == y[head][ok]).sum())
-                count[head] += int(ok.sum())
-            if "ope" in logits:
-                ok = y["ope"] >= 0
-                ope_p.append(logits["ope"].softmax(-1)[ok])
-                ope_y.append(y["ope"][ok])
-    out = {
-        "loss": float(np.mean(losses)),
-        "accuracy": {h: correct[h] / count[h] if count[h] else None for h in heads},
-        "majority": majority(rows, heads),
-        "labelled": count,
-    }
-    if ope_p:
-        p, y = torch.cat(ope_p), torch.cat(ope_y)
-        out["ope_auc"] = {op: auc(p[:, i], y == i) for i, op in enumerate(OPERATIONS) if i}
-    return out
-
-
-def model_heads(cfg: DecisionConfig) -> tuple[str, ...]:
-    """The heads a model predicts (and the card reports)."""
-    return LABELS if cfg.hierarchical else DIRECT
-
-
-def action_labels(directory: Path) -> torch.Tensor:
-    """The teacher's low-level action of every row of a demos folder, in the rows' order
-    (w/o HierDec.'s labels; read from the shards, a few kB each)."""
-    parts = []
-    for shard in sorted(directory.glob("house_*.npz")):
-        with np.load(shard) as z:
-            parts.append(torch.from_numpy(z["action"].astype(np.int64)))
-    return torch.cat(parts)
-
-
-def auc(score: torch.Tensor, positive: torch.Tensor) -> float | None:
-    """Area under the ROC curve: the chance a positive scores above a negative (ties half)."""
-    n_pos, n_neg = int(positive.sum()), int((~positive).sum())
-    if not n_pos or not n_neg:
-        return None
-    ranks = torch.from_numpy(rankdata(score.numpy()))
-    return float((ranks[positive].sum() - n_pos * (n_pos + 1) / 2) / (n_pos * n_neg))
-
-
-def majority(rows: Rows, heads: tuple[str, ...] = LABELS) -> dict[str, float | None]:
-    """Each head's accuracy when always answering its most frequent label (the trivial
-    baseline the card compares with)."""
-    out = {}
-    for head in heads:
-        y = rows.y[head][rows.y[head] >= 0]
-        out[head] = float(torch.bincount(y).max()) / len(y) if len(y) else None
-    return out
 
 
 # ------------------------------------------------------------------- training
 def _seeded(seed: int) -> None:
     torch.manual_seed(seed)
     np.random.seed(seed)
-
-
-def selection_score(metrics: dict, select: str) -> float:
-    """Lower is better."""
-    if select == "loss":
-        return metrics["loss"]
-    acc, base = metrics["accuracy"], metrics["majority"]
-    gains = [acc[h] - base[h] for h in acc if acc[h] is not None and base[h] is not None]
-    return -float(np.mean(gains))
 
 
 def fit(
@@ -378,28 +122,9 @@ def demos_folder(cfg: AgentConfig, setting: str, split: str) -> Path:
 
 def train_decision(config: Path, setting: str, progress: bool = True) -> dict:
     """Demos (if missing), features, behaviour cloning and the model card; returns the card."""
-    from maniskill_tidy.common.provenance import code_version
-
     cfg = AgentConfig.load(config)
-    if setting not in SETTINGS:
-        raise ValueError(f"unknown setting {setting!r}; expected one of {sorted(SETTINGS)}")
-    if cfg.team is not None:
-        from maniskill_tidy.policies import team_class
-
-        if setting != "I":
-            raise ValueError(f"{config}: a team of its own ({cfg.team}) is trained with "
-                             "--setting I and played in every setting")  # fmt: skip
-        for split in (cfg.train_demos, cfg.val_demos):
-            teacher = split.get("teacher", "expert")
-            if getattr(team_class(teacher), "team_override", None) != cfg.team:
-                raise ValueError(f"{config}: teacher {teacher!r} does not play with the team "
-                                 f"{cfg.team}; expected a teacher with that team")  # fmt: skip
+    also = _check(cfg, config, setting)
     settings = cfg.settings()
-    also = [Path(root) / f"setting_{setting}" / "train" for root in cfg.also_train]
-    for folder in also:
-        if not (folder / "manifest.json").is_file():
-            raise FileNotFoundError(f"{config}: also_train {folder} has no demonstrations; make "
-                                    "them with the config that owns them first")  # fmt: skip
     manifests = {}
     for split, demo in (("train", cfg.train_demos), ("val", cfg.val_demos)):
         manifests[split] = build_demo_features(
@@ -422,7 +147,48 @@ def train_decision(config: Path, setting: str, progress: bool = True) -> dict:
     _seeded(settings.seed)
     model = TeamDecision(decision, train.index.shape[-1])
     state = fit(model, train, val, settings, work / f"{cfg.name}.ckpt", progress)
-    card = {
+    card = _card(cfg, config, setting, model, settings, manifests, train, val, state)
+    folder = Path(cfg.out) / f"setting_{setting}"
+    save_decision(model, folder, {"name": cfg.name, "perception": str(perception)})
+    card["weights_sha256"] = weights_sha256(folder)  # checked when a team loads it
+    write_atomic(folder / "card.json", json.dumps(card, indent=1, sort_keys=True).encode())
+    write_atomic(folder / "MODEL_CARD.md", model_card(card).encode())
+    return card
+
+
+def _check(cfg: AgentConfig, config: Path, setting: str) -> list[Path]:
+    """Refuse a setting, team or teacher the config cannot train; returns the also_train
+    folders, each checked to hold demonstrations."""
+    if setting not in SETTINGS:
+        raise ValueError(f"unknown setting {setting!r}; expected one of {sorted(SETTINGS)}")
+    if cfg.team is not None:
+        from maniskill_tidy.policies import team_class
+
+        if setting != "I":
+            raise ValueError(f"{config}: a team of its own ({cfg.team}) is trained with "
+                             "--setting I and played in every setting")  # fmt: skip
+        for split in (cfg.train_demos, cfg.val_demos):
+            teacher = split.get("teacher", "expert")
+            if getattr(team_class(teacher), "team_override", None) != cfg.team:
+                raise ValueError(f"{config}: teacher {teacher!r} does not play with the team "
+                                 f"{cfg.team}; expected a teacher with that team")  # fmt: skip
+    also = [Path(root) / f"setting_{setting}" / "train" for root in cfg.also_train]
+    for folder in also:
+        if not (folder / "manifest.json").is_file():
+            raise FileNotFoundError(f"{config}: also_train {folder} has no demonstrations; make "
+                                    "them with the config that owns them first")  # fmt: skip
+    return also
+
+
+DEMO_FIELDS = ("demos_hash", "teacher", "trajectories", "rows", "teacher_success", "seconds",
+               "starts", "tasks", "student")  # fmt: skip
+
+
+def _card(cfg, config, setting, model, settings, manifests, train, val, state) -> dict:
+    """The card's figures: what was trained on what, for how long, and its val figures."""
+    from maniskill_tidy.common.provenance import code_version
+
+    return {
         "name": cfg.name,
         "setting": setting,
         "config": str(config),
@@ -430,27 +196,12 @@ def train_decision(config: Path, setting: str, progress: bool = True) -> dict:
         "train_settings": asdict(settings),
         "parameters_per_agent": sum(p.numel() for p in model.agents[0].parameters()),
         "agents": len(model.agents),
-        "perception": str(perception),
+        "perception": str(Path(cfg.perception)),
         "demos": {
-            split: {
-                k: m[k]
-                for k in (
-                    "demos_hash",
-                    "teacher",
-                    "trajectories",
-                    "rows",
-                    "teacher_success",
-                    "seconds",
-                    "starts",
-                    "tasks",
-                    "student",
-                )
-                if k in m
-            }
-            for split, m in manifests.items()
-        },  # fmt: skip
+            split: {k: m[k] for k in DEMO_FIELDS if k in m} for split, m in manifests.items()
+        },
         "features": {"train": train.hash, "val": val.hash},
-        "full_trajectories": _split_size(cfg.dataset, "train") * 50,
+        "full_trajectories": split_size(cfg.dataset, "train") * 50,
         "epochs_run": state["epoch"],
         "best_epoch": state["best_epoch"],
         "train_seconds": round(state["seconds"], 1),
@@ -461,108 +212,3 @@ def train_decision(config: Path, setting: str, progress: bool = True) -> dict:
         "notes": cfg.notes.strip(),
         "act": asdict(cfg.acting()),
     }
-    folder = Path(cfg.out) / f"setting_{setting}"
-    save_decision(model, folder, {"name": cfg.name, "perception": str(perception)})
-    card["weights_sha256"] = weights_sha256(folder)  # checked when a team loads it
-    write_atomic(folder / "card.json", json.dumps(card, indent=1, sort_keys=True).encode())
-    write_atomic(folder / "MODEL_CARD.md", model_card(card).encode())
-    return card
-
-
-def _split_size(dataset: str, split: str) -> int:
-    """Houses in a split of the dataset (for the card's time estimate)."""
-    from maniskill_tidy.tasks.dataset import read_manifest
-
-    return int(read_manifest(Path(dataset))["splits"][split])
-
-
-def model_card(card: dict) -> str:
-    hard, soft = card["val_inference_mode"], card["val_training_mode"]
-    teacher = card["demos"]["train"].get("teacher", "expert")
-    teacher = "privileged expert" if teacher == "expert" else f"camera-only {teacher}"
-    lines = [
-        f"# {card['name']}, Setting {card['setting']}",
-        "",
-        f"{_method(card['decision'])}, trained by behaviour cloning on the "
-        f"{'sub-tasks and sub-goals' if card['decision'].get('hierarchical', True) else 'actions'}"
-        f" of the {teacher} team (`maniskill-tidy train {card['config']} --setting "
-        f"{card['setting']}`).",
-        "",
-        f"- agents: {card['agents']}, one model each, {card['parameters_per_agent']:,} "
-        "parameters per agent, stored fp16",
-        f"- perception (frozen): `{card['perception']}`",
-        f"- epochs run: {card['epochs_run']}, best on val: {card['best_epoch']}; training time "
-        f"{card['train_seconds']:.0f} s (2 CPU cores)",
-    ]
-    for split, m in card["demos"].items():
-        lines.append(
-            f"- {split} demonstrations: {m['trajectories']} trajectories ({m['tasks']} meta-tasks"
-            f" per house x {m['starts']} start), {m['rows']} agent-steps, "
-            + (
-                f"played by {m['student']} and labelled by {m['teacher']} (DAgger; the "
-                f"student's success {m['teacher_success']:.3f})"
-                if m.get("student")
-                else f"teacher {m['teacher']} (success {m['teacher_success']:.3f})"
-            )
-            + f", hash `{m['demos_hash'][:12]}`"
-        )
-    train = card["demos"]["train"]
-    each = train.get("render_seconds_per_trajectory")
-    if each:
-        full = each * card.get("full_trajectories", 0) / 3600 / 2
-        lines.append(
-            f"- why this many: rendering takes {each:.0f} s per trajectory in one process; the "
-            f"paper's 5 starts of all 10 meta-tasks of every train house would take {full:.0f} h"
-            " with 2 processes on this machine, so the shipped model uses the first start of "
-            f"the first {train['tasks']} meta-tasks per house"
-        )
-    if card.get("notes"):
-        lines.append(f"- {card['notes']}")
-    if "act" in card:
-        act = ", ".join(f"{k} {v}" for k, v in card["act"].items())
-        lines.append(
-            f"- acting (the config's `act:` section when trained; `policies/learned.py`): {act}"
-        )
-    lines += [
-        "",
-        "Validation accuracy of every head (rows with a label), inference-mode HanGrCom "
-        "(thresholded handshake) and training mode (soft):",
-        "",
-        "| head | inference mode | training mode | most frequent label | labelled rows |",
-        "|---|---|---|---|---|",
-    ]
-    for head in hard["accuracy"]:
-        a, b = (_fmt(m["accuracy"][head]) for m in (hard, soft))
-        base = _fmt(hard.get("majority", {}).get(head))
-        lines.append(f"| {head} | {a} | {b} | {base} | {hard['labelled'][head]} |")
-    lines += [
-        "",
-        f"Validation loss: {hard['loss']:.3f} (inference), {soft['loss']:.3f} (soft).",
-    ]
-    if "ope_auc" in hard:
-        ranked = ", ".join(f"{op} {_fmt(v)}" for op, v in hard["ope_auc"].items())
-        lines.append(
-            f"How well each operation's probability ranks the steps labelled with it (ROC AUC, "
-            f"inference mode; 0.5 is chance): {ranked}."
-        )
-    lines.append("")
-    return "\n".join(lines)
-
-
-def _method(decision: dict) -> str:
-    """What the card's model is, in words."""
-    how = (
-        "Hierarchical decision"
-        if decision.get("hierarchical", True)
-        else ("Direct low-level actions (w/o HierDec.)")
-    )
-    parts = [f"{how} with {scheme(decision.get('communication', 'hangrcom')).title}"]
-    if not decision.get("misplaced_detector", True):
-        parts.append("without the misplaced-object detector (w/o MisObjDec.)")
-    if not decision.get("receptacle_predictor", True):
-        parts.append("without the reasonable-receptacle predictor (w/o ReaRecPre.)")
-    return ", ".join(parts)
-
-
-def _fmt(value: float | None) -> str:
-    return "-" if value is None else f"{value:.3f}"

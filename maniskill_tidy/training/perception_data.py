@@ -68,7 +68,7 @@ class ViewsConfig:
 def region_answers(things: list[tuple[str, float, float]], pose, size: int, cell: float):
     """(REGIONS**2, K) booleans: is a thing of category k centred in sub-region r of the crop.
 
-    Uses the crop's convention (``semantic_map.egocentric_crop``): row 0 is the far end ahead
+    Uses the crop's convention (``crops.egocentric_crop``): row 0 is the far end ahead
     of the agent, column 0 its left, the agent at the centre."""
     categories = load_catalog().categories
     out = np.zeros((REGIONS * REGIONS, len(categories)), dtype=bool)

@@ -283,23 +283,11 @@ def train_perception(
     progress: bool = True,
 ) -> dict[str, dict]:
     """Build the views, train every stage and both variants; returns each variant's card."""
-    from maniskill_tidy.common.provenance import code_version
     from maniskill_tidy.tasks.dataset import load_dataset
 
     cfg = cfg or TrainConfig()
     views_root = work / "views"
-    for split in ("val", "test", "train"):
-        build_views(
-            views_root,
-            str(dataset),
-            ViewsConfig(split, cfg.tasks_per_house[split], cfg.every, seed=cfg.seed, env=cfg.env),
-            workers=workers,
-            progress=progress,
-        )
-    views_seconds = sum(
-        json.loads((views_root / s / "manifest.json").read_text()).get("seconds", 0.0)
-        for s in ("train", "val", "test")
-    )
+    views_seconds = _build_views(views_root, dataset, cfg, workers, progress)
     train, val = Views(load_views(views_root / "train")), Views(load_views(views_root / "val"))
     houses = list(load_dataset(dataset, "train").houses.values())
     priors = compute_priors(train)
@@ -333,27 +321,8 @@ def train_perception(
         stages["reasoning"] = fit_stage(
             model, "reasoning", train, val, cfg, checkpoints / f"reasoning-{variant}.pt", progress
         )
-        cards[variant] = {
-            "variant": variant,
-            "knowledge": knowledge,
-            "dataset": str(dataset),
-            "dataset_hash": json.loads((views_root / "train" / "manifest.json").read_text())[
-                "dataset_hash"
-            ],
-            "views_hash": _views_hash(views_root),
-            "views": {
-                "train_frames": train.frames,
-                "train_detections": train.detections,
-                "val_frames": val.frames,
-                "val_detections": val.detections,
-            },  # fmt: skip
-            "code_version": code_version(),
-            "seed": cfg.seed,
-            "config": asdict(cfg),
-            "stages": stages,
-            "views_seconds": round(views_seconds, 1),
-            "train_seconds": round(sum(s["seconds"] for s in stages.values()), 1),
-        }
+        cards[variant] = _card(variant, knowledge, dataset, views_root, train, val, cfg, stages,
+                               views_seconds)  # fmt: skip
         model.eval()
         cards[variant]["val"] = perception_metrics(model, val, priors)
         save_perception(model, agents / variant)
@@ -361,6 +330,48 @@ def train_perception(
         write_card(agents / variant, cards[variant], priors)
     draw_curves(cards, agents / "curves.png")
     return cards
+
+
+def _build_views(root: Path, dataset: Path, cfg: TrainConfig, workers: int, progress: bool):
+    """Render every split's views (resumable per house); returns the seconds they took."""
+    for split in ("val", "test", "train"):
+        build_views(
+            root,
+            str(dataset),
+            ViewsConfig(split, cfg.tasks_per_house[split], cfg.every, seed=cfg.seed, env=cfg.env),
+            workers=workers,
+            progress=progress,
+        )
+    return sum(
+        json.loads((root / s / "manifest.json").read_text()).get("seconds", 0.0)
+        for s in ("train", "val", "test")
+    )
+
+
+def _card(variant, knowledge, dataset, views_root, train, val, cfg, stages, views_seconds):
+    """A variant's card before its val figures: data, hashes, stages and times."""
+    from maniskill_tidy.common.provenance import code_version
+
+    manifest = json.loads((views_root / "train" / "manifest.json").read_text())
+    return {
+        "variant": variant,
+        "knowledge": knowledge,
+        "dataset": str(dataset),
+        "dataset_hash": manifest["dataset_hash"],
+        "views_hash": _views_hash(views_root),
+        "views": {
+            "train_frames": train.frames,
+            "train_detections": train.detections,
+            "val_frames": val.frames,
+            "val_detections": val.detections,
+        },  # fmt: skip
+        "code_version": code_version(),
+        "seed": cfg.seed,
+        "config": asdict(cfg),
+        "stages": stages,
+        "views_seconds": round(views_seconds, 1),
+        "train_seconds": round(sum(s["seconds"] for s in stages.values()), 1),
+    }
 
 
 def model_card(card: dict) -> str:

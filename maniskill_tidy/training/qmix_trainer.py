@@ -111,7 +111,6 @@ def td_loss(model: QmixTeamModel, target: QmixTeamModel, b: dict, gamma: float) 
 def train_qmix(config: Path, setting: str, progress: bool = True, env=None) -> dict:
     """Train (resumable), then write the model, its card and learning curve; returns the card.
     ``env``: a train-split env of the setting to reuse (made from the config when None)."""
-    from maniskill_tidy.common.provenance import code_version
     from maniskill_tidy.eval.episode import play_episode
     from maniskill_tidy.eval.runner import RunConfig, make_env
     from maniskill_tidy.models.checkpoints import load_perception
@@ -129,17 +128,8 @@ def train_qmix(config: Path, setting: str, progress: bool = True, env=None) -> d
     optimiser = torch.optim.Adam(model.parameters(), lr=cfg.lr)
     rng = np.random.default_rng(cfg.seed)
     key = json.dumps({k: v for k, v in asdict(cfg).items() if k not in ("episodes", "notes")})
-    state = {"episode": 0, "curve": [], "seconds": 0.0, "env_steps": 0}
     ckpt = work / f"{cfg.name}.ckpt"
-    if ckpt.is_file():
-        saved = torch.load(ckpt, weights_only=False)
-        if saved["settings"] == key:
-            model.load_state_dict(saved["model"])
-            target.load_state_dict(saved["target"])
-            optimiser.load_state_dict(saved["optimiser"])
-            rng.bit_generator.state = saved["rng"]
-            torch.set_rng_state(saved["torch_rng"])
-            state = saved["state"]
+    state = _resume(ckpt, key, model, target, optimiser, rng)
     perception = load_perception(Path(cfg.perception))
     own_env = env is None
     if own_env:
@@ -166,17 +156,7 @@ def train_qmix(config: Path, setting: str, progress: bool = True, env=None) -> d
             write_atomic(work / "episodes" / f"ep_{k:05d}.pt", buf.getvalue())
             buffer[k] = episode
             buffer.pop(k - cfg.buffer, None)
-            model.train()
-            losses = []
-            for _ in range(cfg.updates):
-                keys = sorted(buffer)
-                pick = rng.choice(keys, size=min(cfg.batch, len(keys)), replace=False)
-                loss = td_loss(model, target, collate([buffer[int(j)] for j in pick]), cfg.gamma)
-                optimiser.zero_grad()
-                loss.backward()
-                torch.nn.utils.clip_grad_norm_(model.parameters(), 10.0)
-                optimiser.step()
-                losses.append(loss.item())
+            losses = _td_updates(model, target, optimiser, buffer, rng, cfg)
             if (k + 1) % cfg.target_every == 0:
                 target.load_state_dict(model.state_dict())
             state["episode"] = k + 1
@@ -187,12 +167,7 @@ def train_qmix(config: Path, setting: str, progress: bool = True, env=None) -> d
                 "placed": reward.placed, "length": record.length, "loss": float(np.mean(losses)),
                 "epsilon": cfg.exploration(k), "env_steps": state["env_steps"],
             })  # fmt: skip
-            buf = io.BytesIO()
-            torch.save({"model": model.state_dict(), "target": target.state_dict(),
-                        "optimiser": optimiser.state_dict(), "rng": rng.bit_generator.state,
-                        "torch_rng": torch.get_rng_state(), "state": state, "settings": key},
-                       buf)  # fmt: skip
-            write_atomic(ckpt, buf.getvalue())
+            _checkpoint(ckpt, key, model, target, optimiser, rng, state)
             bar.update(1)
             bar.set_postfix(ret=f"{state['curve'][-1]['return']:.2f}",
                             eps=f"{cfg.exploration(k):.2f}")  # fmt: skip
@@ -201,6 +176,54 @@ def train_qmix(config: Path, setting: str, progress: bool = True, env=None) -> d
         if own_env:
             env.close()
     model.eval()
+    return _write_model(cfg, config, setting, model, perception, state)
+
+
+def _resume(ckpt: Path, key: str, model, target, optimiser, rng) -> dict:
+    """The training state of a checkpoint of the same settings, loaded into the model, its
+    target, the optimiser and the generators; a fresh state otherwise."""
+    state = {"episode": 0, "curve": [], "seconds": 0.0, "env_steps": 0}
+    if ckpt.is_file():
+        saved = torch.load(ckpt, weights_only=False)
+        if saved["settings"] == key:
+            model.load_state_dict(saved["model"])
+            target.load_state_dict(saved["target"])
+            optimiser.load_state_dict(saved["optimiser"])
+            rng.bit_generator.state = saved["rng"]
+            torch.set_rng_state(saved["torch_rng"])
+            state = saved["state"]
+    return state
+
+
+def _checkpoint(ckpt: Path, key: str, model, target, optimiser, rng, state: dict) -> None:
+    buf = io.BytesIO()
+    torch.save({"model": model.state_dict(), "target": target.state_dict(),
+                "optimiser": optimiser.state_dict(), "rng": rng.bit_generator.state,
+                "torch_rng": torch.get_rng_state(), "state": state, "settings": key},
+               buf)  # fmt: skip
+    write_atomic(ckpt, buf.getvalue())
+
+
+def _td_updates(model, target, optimiser, buffer: dict, rng, cfg: QmixConfig) -> list[float]:
+    """``cfg.updates`` TD steps on batches of whole episodes from the buffer."""
+    model.train()
+    losses = []
+    for _ in range(cfg.updates):
+        keys = sorted(buffer)
+        pick = rng.choice(keys, size=min(cfg.batch, len(keys)), replace=False)
+        loss = td_loss(model, target, collate([buffer[int(j)] for j in pick]), cfg.gamma)
+        optimiser.zero_grad()
+        loss.backward()
+        torch.nn.utils.clip_grad_norm_(model.parameters(), 10.0)
+        optimiser.step()
+        losses.append(loss.item())
+    return losses
+
+
+def _write_model(cfg: QmixConfig, config: Path, setting: str, model, perception, state) -> dict:
+    """The weights, the card (validated greedily on val) and the learning curve."""
+    from maniskill_tidy.common.provenance import code_version
+
     folder = Path(cfg.out) / f"setting_{setting}"
     save_qmix(model, folder, {"name": cfg.name, "perception": cfg.perception})
     card = {

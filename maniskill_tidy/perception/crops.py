@@ -1,0 +1,85 @@
+"""What the decision modules read of a map: the egocentric crop (the paper's G x G), the
+coarse wide layout, and the planner grid pooled from the map."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from maniskill_tidy.perception.map_grid import EXPLORED, FIRST_CHANNEL, OBSTACLE, MapFrame
+
+
+def pool_to_planner(top_down: np.ndarray, planner_shape: tuple[int, int]) -> np.ndarray:
+    rows, cols = planner_shape
+    n = top_down.shape[0] // rows
+    if n * rows != top_down.shape[0] or n * cols != top_down.shape[1]:
+        raise ValueError(
+            f"map of {top_down.shape[:2]} cells does not tile a {planner_shape} planner grid"
+        )
+    return top_down.reshape(rows, n, cols, n, -1).max(axis=(1, 3))
+
+
+def egocentric_crop(
+    top_down: np.ndarray, frame: MapFrame, pose, size: int = 20, cell: float = 0.25
+) -> np.ndarray:
+    """(size, size, channels) crop centred on the agent and turned to its heading.
+
+    Row 0 is the far end ahead of the agent, column 0 its left; the agent stands at the centre.
+    A crop cell holds the maximum of the map cells whose centres fall in it (sampled on a grid
+    of map-cell spacing), so a 5 cm object is not lost in a 25 cm crop cell. Cells outside the
+    map are 0.
+    """
+    sub = max(int(round(cell / frame.cell)), 1)
+    return _egocentric_samples(top_down, frame, pose, size, cell, sub).max(axis=(1, 3))
+
+
+WIDE_SIZE = 20  # cells of the wide layout
+
+
+WIDE_CELL = 1.0  # metres per wide-layout cell: 20 m across, most of a house
+
+
+WIDE_SAMPLES = 4  # samples per cell side (every 0.25 m, the planner's grid)
+
+
+def wide_layout(
+    top_down: np.ndarray,
+    frame: MapFrame,
+    pose,
+    size: int = WIDE_SIZE,
+    cell: float = WIDE_CELL,
+    samples: int = WIDE_SAMPLES,
+) -> np.ndarray:
+    """(size, size, 3) uint8: per coarse cell, the share (0-255) of obstacle, explored and
+    any-object samples, oriented as :func:`egocentric_crop`.
+
+    The 5 m crop rarely holds the frontier an exploring teacher heads for; this coarse view of
+    the agent's own map does, and shares keep a half-explored cell apart from an explored one.
+    """
+    s = _egocentric_samples(top_down, frame, pose, size, cell, samples)
+    layout = np.stack(
+        [s[..., OBSTACLE], s[..., EXPLORED], s[..., FIRST_CHANNEL:].any(-1)], axis=-1
+    ).astype(np.float32)
+    return np.round(layout.mean(axis=(1, 3)) * 255).astype(np.uint8)
+
+
+def _egocentric_samples(
+    top_down: np.ndarray, frame: MapFrame, pose, size: int, cell: float, sub: int
+) -> np.ndarray:
+    """(size, sub, size, sub, channels): the map read at ``sub`` x ``sub`` points per crop
+    cell of an egocentric grid (0 outside the map)."""
+    x, y, rotation = (float(v) for v in pose)
+    yaw = math.radians(rotation)
+    fwd = np.array([math.cos(yaw), math.sin(yaw)])
+    right = np.array([math.sin(yaw), -math.cos(yaw)])
+    offsets = (np.arange(size * sub) + 0.5) / sub - size / 2  # crop cells from the centre
+    ahead = -offsets * cell  # row index grows away from "ahead"
+    side = offsets * cell
+    a, s = np.meshgrid(ahead, side, indexing="ij")
+    world = np.stack([x + a * fwd[0] + s * right[0], y + a * fwd[1] + s * right[1]], axis=-1)
+    rows, cols = frame.cells_of(world.reshape(-1, 2))
+    inside = (rows >= 0) & (rows < top_down.shape[0]) & (cols >= 0) & (cols < top_down.shape[1])
+    samples = np.zeros((len(rows), top_down.shape[2]), dtype=top_down.dtype)
+    samples[inside] = top_down[rows[inside], cols[inside]]
+    return samples.reshape(size, sub, size, sub, -1)
