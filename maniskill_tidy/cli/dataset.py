@@ -110,11 +110,12 @@ def _export(args: argparse.Namespace) -> int:
 
 
 def _validate(args: argparse.Namespace) -> int:
-    from maniskill_tidy.envs.settle_check import physics_problems
     from maniskill_tidy.tasks.validate import validate_dataset
 
     problems = validate_dataset(Path(args.dir))
-    if args.physics and not problems:
+    if args.physics and not problems:  # the simulator is imported only when it is needed
+        from maniskill_tidy.envs.settle_check import physics_problems
+
         problems = physics_problems(Path(args.dir))
     for p in problems[: args.max_problems]:
         print(p)
