@@ -2,13 +2,19 @@
 # The package as a user gets it: build the wheel, install it into a fresh virtual environment
 # (with constraints.txt, as setup.sh does), and from outside the source tree make the env and
 # play one evaluation episode. A module or data file missing from the wheel fails here.
+# WHEEL_CHECK_DIR: keep everything there (a new folder) instead of a temporary one.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-OUT=$(realpath -m "${OUT:-out/wheel-check}")
-rm -rf "$OUT"
-mkdir -p "$OUT"
-echo "[wheel-check] building the wheel"
-.venv/bin/pip wheel -q --no-deps --no-build-isolation -w "$OUT/dist" . 2>&1 \
+if [ -n "${WHEEL_CHECK_DIR:-}" ]; then
+  [ ! -e "$WHEEL_CHECK_DIR" ] || { echo "WHEEL_CHECK_DIR $WHEEL_CHECK_DIR exists; expected a new folder" >&2; exit 2; }
+  mkdir -p "$WHEEL_CHECK_DIR"
+  OUT=$(realpath "$WHEEL_CHECK_DIR")
+else
+  OUT=$(mktemp -d /tmp/wheel-check.XXXXXX)  # outside the checkout: no .git above it
+  trap 'rm -rf "$OUT"' EXIT
+fi
+echo "[wheel-check] building the wheel in $OUT"
+.venv/bin/pip wheel -q --no-deps -w "$OUT/dist" . 2>&1 \
   | { grep -v -e "is ignored: it is neither a file nor a directory" || true; }
 python3 -m venv "$OUT/venv"
 echo "[wheel-check] installing $(basename "$OUT"/dist/*.whl) into a fresh venv"
@@ -32,5 +38,6 @@ for env_id in ("HeteroTidy-v1", "HeteroTidy-v2"):
     print(f"[wheel-check] {env_id}: made, reset, stepped and drawn from the wheel")
 PY
 venv/bin/maniskill-tidy eval --policy expert --setting I --episodes 1 --out run
-test -f run/eval/results/setting_I/expert/summary.json
+# an installed package has no checkout to name: the run records the package's version
+grep -q '"maniskill-tidy 0.1.0"' run/eval/results/setting_I/expert/run.json
 echo "[wheel-check] ok: the wheel's env and one eval episode run outside the source tree"

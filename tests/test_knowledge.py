@@ -86,3 +86,15 @@ def test_derive_names_missing_reference_files(tmp_path):
 
     with pytest.raises(FileNotFoundError, match="asset-database.json"):
         derive(tmp_path)
+
+
+def test_the_maintainers_commands_write_the_shipped_tables_by_default():
+    """derive-knowledge and derive-word-vectors without --out replace the package's tables
+    (a default that pointed elsewhere would leave the shipped ones silently stale)."""
+    from pathlib import Path
+
+    import maniskill_tidy.knowledge
+    from maniskill_tidy.cli.maintenance import KNOWLEDGE_DATA
+
+    shipped = Path(maniskill_tidy.knowledge.__file__).resolve().parent / "data"
+    assert KNOWLEDGE_DATA == shipped and (shipped / "word_vectors.json").is_file()

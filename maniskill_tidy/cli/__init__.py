@@ -4,9 +4,9 @@ Every error caused by what the user asked for (a bad argument, a missing, damage
 dataset, a bad recording or house file) is one line on stderr naming the problem and what was
 expected, with exit status 2; nothing is half-written. Anything else raised inside a job (an
 episode, a house, a shard) is a bug: its traceback, then one line naming the job, exit status 1.
-
-One module per command group; each adds its commands to the parser.
 """
+
+# One module per command group; each adds its commands to the parser.
 
 from __future__ import annotations
 

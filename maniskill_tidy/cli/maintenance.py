@@ -7,11 +7,13 @@ import json
 import time
 from pathlib import Path
 
+KNOWLEDGE_DATA = Path(__file__).resolve().parents[1] / "knowledge" / "data"  # the shipped tables
+
 
 def _derive(args: argparse.Namespace) -> int:
     from maniskill_tidy.knowledge.derive import derive, write
 
-    out = Path(args.out or Path(__file__).parent / "knowledge" / "data")
+    out = Path(args.out or KNOWLEDGE_DATA)
     write(derive(Path(args.reference)), out)
     print(f"wrote {out}")
     return 0
@@ -37,7 +39,7 @@ def _derive_word_vectors(args: argparse.Namespace) -> int:
     from maniskill_tidy.common.files import write_atomic
     from maniskill_tidy.knowledge.word_vectors import derive_word_vectors
 
-    out = Path(args.out or Path(__file__).parent / "knowledge" / "data" / "word_vectors.json")
+    out = Path(args.out or KNOWLEDGE_DATA / "word_vectors.json")
     table = derive_word_vectors(Path(args.source))
     write_atomic(out, (json.dumps(table, indent=0) + "\n").encode())
     print(f"wrote {out}: {len(table['vectors'])} names x {table['dimensions']}")

@@ -15,6 +15,7 @@ import io
 import json
 from dataclasses import asdict
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
@@ -23,9 +24,10 @@ from maniskill_tidy.common.files import file_sha256, write_atomic
 from maniskill_tidy.knowledge import load_catalog
 from maniskill_tidy.knowledge.word_vectors import load_word_vectors
 from maniskill_tidy.models.decision import DecisionConfig, TeamDecision
-from maniskill_tidy.models.knowledge_graph import KnowledgeGraph
-from maniskill_tidy.models.perception import PerceptionConfig, PerceptionModel
 from maniskill_tidy.models.qmix import QmixTeamModel
+
+if TYPE_CHECKING:
+    from maniskill_tidy.models.perception import PerceptionModel
 
 WEIGHTS = "model.pt"
 CARD = "card.json"
@@ -122,6 +124,11 @@ def save_perception(model: PerceptionModel, folder: Path) -> None:
 def load_perception(folder: Path) -> PerceptionModel:
     """A trained perception model, ready for inference; its knowledge graph is rebuilt from
     the saved GCN buffers, so the train houses are not needed."""
+    # here, not at the top: the perception model pulls in torch_geometric (seconds), which
+    # every team that imports this module would pay for, scripted ones included
+    from maniskill_tidy.models.knowledge_graph import KnowledgeGraph
+    from maniskill_tidy.models.perception import PerceptionConfig, PerceptionModel
+
     saved = read(folder, "maniskill-tidy train perception")
     state = saved["state"]
     graph = KnowledgeGraph(

@@ -39,7 +39,11 @@ from maniskill_tidy.tasks.teams import SETTINGS
 
 
 def check_task(house: House, task: MetaTask, from_floor: bool = False) -> list[str]:
-    """``from_floor``: heights as ProcTHOR datasets measure them (see ``findable``)."""
+    """Every problem of one meta-task in its house. ``from_floor``: heights as ProcTHOR
+    datasets measure them (see ``findable``).
+
+    One list of checks in the order a task is built (objects, their misplacements, labels,
+    goals, starts), each a few lines that append to the same list of problems."""
     where = task.id
     problems = []
     if not 1 <= task.k <= 5 or task.k != len(task.misplaced):
