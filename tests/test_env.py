@@ -399,3 +399,19 @@ def test_preset_files_match_the_builtin_settings_and_custom_teams_run():
         e.close()
     with pytest.raises(ValueError, match="not a team preset"):
         load_preset(root / "README.md")
+
+
+def test_v1_is_not_called_out_of_date_beside_v2():
+    """gymnasium warns that an id with a higher version is out of date; v1 is the default
+    look, so making it must not tell users to move to v2."""
+    import warnings
+
+    import gymnasium as gym
+
+    from maniskill_tidy.envs.registration import register_gym
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("default")
+        register_gym()  # puts its filter in front of the test's
+        gym.make("HeteroTidy-v1", setting="I", split="test", obs_mode="none").close()
+    assert not [w for w in caught if "out of date" in str(w.message)]
