@@ -77,7 +77,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--houses", type=int, default=120)
     parser.add_argument(
         "--only",
-        choices=("generation", "env", "looks", "map", "map-accuracy", "eval", "throughput"),
+        choices=(
+            "generation", "env", "looks", "map", "map-accuracy", "eval", "throughput", "teams",
+        ),  # fmt: skip
         default=None,
     )
     parser.add_argument("--eval-dataset", help="dataset for the eval row (default: shipped one)")
@@ -100,6 +102,14 @@ def main(argv: list[str] | None = None) -> int:
         print(report_throughput(bench_throughput(dataset=args.eval_dataset)))
         print()
         if args.only == "throughput":
+            return 0
+    if args.only in (None, "teams"):
+        from maniskill_tidy.eval.team_benchmark import TEAMS, bench_team, bench_workers, report
+
+        rows = [bench_team(team, dataset=args.eval_dataset) for team in TEAMS]
+        print(report(rows, [bench_workers(team, dataset=args.eval_dataset) for team in TEAMS]))
+        print()
+        if args.only == "teams":
             return 0
     if args.only in (None, "map-accuracy"):
         from maniskill_tidy.perception.accuracy import bench_map_accuracy, report

@@ -1,0 +1,41 @@
+"""The teams bench measures the env alone on the very episode the team played."""
+
+from __future__ import annotations
+
+import pytest
+
+from maniskill_tidy.eval.team_benchmark import ActionLog, bench_team, replay
+
+
+def test_replaying_a_teams_actions_ends_as_its_episode_did():
+    row = bench_team("random", episodes=1)
+    assert row["episodes"] == 1 and row["team_s"] > 0 and row["env_s"] > 0
+
+
+def test_a_replay_that_diverges_is_noticed():
+    """Replaying other actions than the team's ends otherwise: the check can fail."""
+    from maniskill_tidy.eval.episode import play_episode
+    from maniskill_tidy.eval.runner import RunConfig, make_env
+    from maniskill_tidy.policies import make_team
+
+    env = make_env(RunConfig("expert", "I", "test", None, 1))
+    try:
+        log = ActionLog()
+        record = play_episode(env, make_team("expert"), 0, 0, [log])
+        assert record.reasonable > 0
+        done = replay(env, 0, 0, log.steps)
+        assert (bool(done["success"]), done["n_reasonable"]) == (record.success, record.reasonable)
+        names = env.unwrapped.agent_names
+        idle = replay(env, 0, 0, [dict.fromkeys(names, 0) for _ in log.steps])  # MoveAhead only
+        assert idle["n_reasonable"] < record.reasonable
+    finally:
+        env.close()
+
+
+@pytest.mark.parametrize("policy", ["random"])
+def test_the_report_names_each_team(policy):
+    from maniskill_tidy.eval.team_benchmark import report
+
+    text = report([bench_team(policy, episodes=1)], [{"team": policy, "episodes": 1,
+                                                     "two_over_one": 1.5}])  # fmt: skip
+    assert policy in text and "1.50" in text
