@@ -81,15 +81,7 @@ class AgentConfig:
     @classmethod
     def load(cls, path: Path) -> AgentConfig:
         path = Path(path)
-        raw = read_config(path)
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(raw) - known)
-        if unknown:
-            raise ValueError(f"{path}: unknown keys {unknown}; expected some of {sorted(known)}")
-        for key in ("name", "out"):
-            if key not in raw:
-                raise ValueError(f"{path}: missing {key!r}")
-        cfg = cls(**raw)
+        cfg = cls(**_checked_keys(path, read_config(path), cls))
         for section, klass in (
             ("model", DecisionConfig), ("train", TrainSettings), ("act", ActSettings),
         ):  # fmt: skip
@@ -182,15 +174,7 @@ class QmixConfig:
     @classmethod
     def load(cls, path: Path) -> QmixConfig:
         path = Path(path)
-        raw = read_config(path)
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(raw) - known)
-        if unknown:
-            raise ValueError(f"{path}: unknown keys {unknown}; expected some of {sorted(known)}")
-        for key in ("name", "out"):
-            if key not in raw:
-                raise ValueError(f"{path}: missing {key!r}")
-        cfg = cls(**raw)
+        cfg = cls(**_checked_keys(path, read_config(path), cls))
         if set(cfg.epsilon) != {"start", "end", "episodes"}:
             raise ValueError(f"{path}: epsilon needs start, end and episodes, got {cfg.epsilon}")
         if set(cfg.reward) != {"placed", "picked", "step"}:
@@ -203,6 +187,18 @@ class QmixConfig:
         e = self.epsilon
         frac = min(episode / max(e["episodes"], 1), 1.0)
         return float(e["start"] + frac * (e["end"] - e["start"]))
+
+
+def _checked_keys(path: Path, raw: dict, cls) -> dict:
+    """``raw`` if it names only ``cls``'s fields and has a name and an output folder."""
+    known = {f.name for f in fields(cls)}
+    unknown = sorted(set(raw) - known)
+    if unknown:
+        raise ValueError(f"{path}: unknown keys {unknown}; expected some of {sorted(known)}")
+    for key in ("name", "out"):
+        if key not in raw:
+            raise ValueError(f"{path}: missing {key!r}")
+    return raw
 
 
 def is_qmix_config(path: Path) -> bool:
