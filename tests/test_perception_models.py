@@ -155,6 +155,20 @@ def test_model_shapes(houses):
         if knowledge:
             assert torch.allclose(r.attention.sum(1), torch.ones(b))
 
+def test_frozen_model_reuses_sq_until_a_weight_changes(houses):
+    model = new_model(houses, True).eval()
+    with torch.no_grad():
+        first = model.knowledge_nodes()
+        assert model.knowledge_nodes() is first  # computed once
+        assert torch.equal(first, model.gcn())  # and exactly what the GCN gives
+        state = {k: v + 0.01 for k, v in model.gcn.state_dict().items()}
+        model.gcn.load_state_dict(state)
+        again = model.knowledge_nodes()
+        assert again is not first and torch.equal(again, model.gcn())
+    model.train()
+    assert model.knowledge_nodes().requires_grad  # training: recomputed, with gradients
+
+
 
 def _train_quick(houses, views, tmp: Path, knowledge=True, epochs=None, seed=0):
     cfg = TrainConfig(

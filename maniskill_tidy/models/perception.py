@@ -85,6 +85,17 @@ class PerceptionModel(nn.Module):
     def sr(self, seen: torch.Tensor, sv: torch.Tensor) -> torch.Tensor:
         return self.room_classifier.embed(seen, sv)
 
+    def knowledge_nodes(self) -> torch.Tensor:
+        """sq. It depends on the weights alone, so a frozen model (eval mode, no gradient)
+        computes it once and reuses it until a weight changes (a learned team asks for it on
+        every step of every agent)."""
+        if self.training or torch.is_grad_enabled():
+            return self.gcn()
+        key = tuple((t.data_ptr(), t._version) for t in self.gcn.state_dict().values())
+        if getattr(self, "_sq", (None,))[0] != key:
+            self._sq = (key, self.gcn())
+        return self._sq[1]
+
     def reason(
         self,
         sv: torch.Tensor,
@@ -97,7 +108,7 @@ class PerceptionModel(nn.Module):
         sl = self.detection(kind, rest, numeric)
         weights = None
         if self.cfg.knowledge:
-            sq = self.gcn()
+            sq = self.knowledge_nodes()
             attl, weights = self.object_attention(sl, sq)
             attr, _ = self.room_attention(sr, sq)
         else:
