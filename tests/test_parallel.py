@@ -46,3 +46,30 @@ def test_the_workers_traceback_comes_with_the_error(tmp_path):
         list(run_jobs([(str(tmp_path), 0)] * 2, lookup_or_fail, 2))
     text = "".join(traceback.format_exception(info.value.cause))
     assert "lookup_or_fail" in text and '{"CD_1": 1}["CD_2"]' in text
+
+
+def thread_knobs(_job: int) -> dict[str, str | None]:
+    import os
+
+    from maniskill_tidy.common.parallel import THREAD_KNOBS
+
+    return {k: os.environ.get(k) for k in THREAD_KNOBS}
+
+
+def test_pool_workers_get_their_share_of_the_cores_and_the_parent_is_untouched(monkeypatch):
+    import os
+
+    from maniskill_tidy.common.parallel import THREAD_KNOBS, worker_threads
+
+    for k in THREAD_KNOBS:
+        monkeypatch.delenv(k, raising=False)
+    monkeypatch.setenv("OMP_NUM_THREADS", "7")  # one the user set stays
+    seen = [env for _, env in run_jobs(range(4), thread_knobs, workers=2)]
+    share = str(worker_threads(2))
+    for env in seen:
+        assert env["LP_NUM_THREADS"] == share and env["MKL_NUM_THREADS"] == share
+        assert env["OMP_NUM_THREADS"] == "7"
+    assert "LP_NUM_THREADS" not in os.environ and os.environ["OMP_NUM_THREADS"] == "7"
+    # in this process (one worker) nothing is changed
+    (_, env), *_ = run_jobs([0], thread_knobs, workers=1)
+    assert env["LP_NUM_THREADS"] is None

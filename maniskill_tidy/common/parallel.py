@@ -20,9 +20,15 @@ import os
 import socket
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
 from typing import Any
 
 MAX_ATTEMPTS = 3  # actors one job may lose before the run stops
+
+# The thread pools a worker process would otherwise size to every core of the machine: lavapipe's
+# rasteriser (LP_NUM_THREADS), OpenMP (torch's intra-op pool, open3d's loops) and the BLAS
+# libraries. N workers each spreading over all cores fight for them (issue 48).
+THREAD_KNOBS = ("LP_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
 
 
 class WorkerLostError(RuntimeError):
@@ -50,6 +56,30 @@ def die_with_parent() -> None:
         ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, int(signal.SIGTERM))  # PDEATHSIG
     except (OSError, AttributeError):
         pass
+
+
+def worker_threads(workers: int) -> int:
+    """Threads each of ``workers`` local processes may use: its share of this machine's cores."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    return max(1, (cores or 1) // max(1, workers))
+
+
+@contextmanager
+def thread_budget(threads: int) -> Iterator[None]:
+    """Processes started inside inherit ``threads`` per pool in :data:`THREAD_KNOBS` (read when
+    the libraries load, so they must be in the environment before a worker imports them); a
+    knob the user set is left as it is. The environment is restored afterwards."""
+    saved = {k: os.environ.get(k) for k in THREAD_KNOBS}
+    for k in THREAD_KNOBS:
+        os.environ.setdefault(k, str(threads))
+    try:
+        yield
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
 
 
 def _pool_init(init: Callable | None, initargs: tuple) -> None:
@@ -92,13 +122,14 @@ def run_jobs(
         from concurrent.futures import ProcessPoolExecutor, as_completed
         from multiprocessing import get_context
 
-        with ProcessPoolExecutor(
-            min(workers, len(jobs)),
-            mp_context=get_context("spawn"),
-            initializer=_pool_init,
-            initargs=(init, initargs),
-        ) as pool:
-            futures = {pool.submit(work, job): job for job in jobs}
+        n = min(workers, len(jobs))
+        pool = ProcessPoolExecutor(
+            n, mp_context=get_context("spawn"), initializer=_pool_init, initargs=(init, initargs)
+        )
+        with pool:
+            # the workers start as jobs are submitted: the budget holds for that moment only
+            with thread_budget(worker_threads(n)):
+                futures = {pool.submit(work, job): job for job in jobs}
             done = futures if ordered else as_completed(futures)
             try:
                 for fut in done:
