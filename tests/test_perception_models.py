@@ -258,3 +258,28 @@ def test_average_precision_by_hand():
     truth = np.array([True, True, False])
     assert average_precision(score, truth) == pytest.approx((1 + 2 / 3) / 2)
     assert average_precision(score, np.zeros(3, bool)) == 0.0
+
+
+def test_perception_reports_side_by_side_name_each_look(tmp_path):
+    from maniskill_tidy.training.perception_report import beside
+
+    shipped = Path(__file__).resolve().parents[1] / "agents" / "perception"
+    metrics = json.loads((shipped / "test_metrics.json").read_text())
+    for name, env, scale in (("v1", "HeteroTidy-v1", 1.0), ("v2", "HeteroTidy-v2", 0.5)):
+        (tmp_path / name / "knowledge").mkdir(parents=True)
+        card = json.loads((shipped / "knowledge" / "card.json").read_text())
+        card["config"]["env"] = env
+        (tmp_path / name / "knowledge" / "card.json").write_text(json.dumps(card))
+        m = json.loads(json.dumps(metrics))
+        m["knowledge"]["room"]["accuracy"] *= scale
+        (tmp_path / name / "test_metrics.json").write_text(json.dumps(m))
+    table = beside(tmp_path / "v2", [tmp_path / "v1"], "test")
+    head = table.splitlines()[0]
+    assert head.index("with knowledge, HeteroTidy-v2") < head.index("with knowledge, HeteroTidy-v1")
+    room = next(line for line in table.splitlines() if line.startswith("| room classifier"))
+    acc = metrics["knowledge"]["room"]["accuracy"]
+    assert room.split("|")[2].strip() == f"{acc * 0.5:.3f}"
+    assert room.split("|")[3].strip() == f"{acc:.3f}"
+    assert (tmp_path / "v2" / "TEST_BESIDE.md").read_text().startswith(head)
+    with pytest.raises(FileNotFoundError, match="perception-report --agents"):
+        beside(tmp_path / "v2", [tmp_path / "missing"], "test")

@@ -96,9 +96,11 @@ def _train(args: argparse.Namespace) -> int:
 
 
 def _perception_report(args: argparse.Namespace) -> int:
-    from maniskill_tidy.training.perception_report import report
+    from maniskill_tidy.training.perception_report import beside, report
 
     print(report(Path(args.agents), Path(args.dataset), args.split, Path(args.work), args.workers))
+    if args.beside:
+        print(beside(Path(args.agents), [Path(a) for a in args.beside], args.split))
     return 0
 
 
@@ -157,4 +159,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     pr.add_argument("--split", default="test", choices=("val", "test"))
     pr.add_argument("--work", default="data/perception", help="where the split's views are kept")
     pr.add_argument("--workers", type=int, default=2)
+    pr.add_argument(
+        "--beside", action="append", metavar="AGENTS",
+        help="also a table of the figures of these agent folders (their own reports) beside "
+        "these (repeatable): v1's perception beside v2's",
+    )  # fmt: skip
     pr.set_defaults(func=_perception_report)

@@ -213,6 +213,37 @@ def format_report(results: dict[str, dict], split: str) -> str:
     return "\n".join(rows)
 
 
+# The headline figures, as paths into a variant's metrics (``SPLIT_metrics.json``).
+FIGURES = (
+    ("room classifier accuracy", ("room", "accuracy")),
+    ("detector precision (misplaced)", ("detector", "precision")),
+    ("detector recall (misplaced)", ("detector", "recall")),
+    ("detector f1 (misplaced)", ("detector", "f1")),
+    ("receptacle top-1 reasonable & in house", ("receptacle", "top1_reasonable_in_house")),
+    ("room top-1 reasonable & in house", ("receptacle", "room_top1_reasonable_in_house")),
+    ("scene-encoder query F1 (positives)", ("scene", "f1")),
+    ("scene-encoder query average precision", ("scene", "average_precision")),
+)
+
+
+def format_beside(results: dict[str, dict[str, dict]], split: str) -> str:
+    """A markdown table of the headline figures of several agent folders (``results``: name ->
+    variant -> metrics), each variant's columns side by side: one model trained and tested on
+    each look, for instance."""
+    names = list(results)
+    variants = [v for v in ("knowledge", "no-knowledge") if all(v in r for r in results.values())]
+    label = {"knowledge": "with knowledge", "no-knowledge": "w/o Know."}
+    head = [f"{label[v]}, {n}" for v in variants for n in names]
+    rows = [f"| {split} split | " + " | ".join(head) + " |", "|---" * (len(head) + 1) + "|"]
+    counts = [f"{results[n][v]['frames']} / {results[n][v]['detections']}"
+              for v in variants for n in names]  # fmt: skip
+    rows.append("| frames / detections | " + " | ".join(counts) + " |")
+    for name, (group, key) in FIGURES:
+        vals = [f"{results[n][v][group][key]:.3f}" for v in variants for n in names]
+        rows.append(f"| {name} | " + " | ".join(vals) + " |")
+    return "\n".join(rows)
+
+
 def draw_report(results: dict[str, dict], path: Path) -> None:
     """Room-classifier confusion matrix and the detector's precision-recall curves."""
     import matplotlib
@@ -315,6 +346,34 @@ def report(agents: Path, dataset: Path, split: str, work: Path, workers: int = 2
     write_json(agents / f"{split}_metrics.json", results)
     draw_report(results, agents / f"{split}.png")
     return table + note + f"\nwrote {agents / f'{split.upper()}.md'} and {agents / f'{split}.png'}"
+
+
+def beside(agents: Path, others: list[Path], split: str) -> str:
+    """``agents``' figures beside those of ``others`` (each from its own ``SPLIT_metrics.json``,
+    named by the look its views were rendered in); writes ``SPLIT_BESIDE.md`` in ``agents``."""
+    results: dict[str, dict] = {}
+    for folder in [agents, *others]:
+        path = folder / f"{split}_metrics.json"
+        if not path.is_file():
+            raise FileNotFoundError(
+                f"{path} not found; run `maniskill-tidy perception-report --agents {folder}` first"
+            )
+        card = json.loads((folder / "knowledge" / "card.json").read_text())
+        name = card.get("config", {}).get("env", "HeteroTidy-v1")
+        results[name if name not in results else str(folder)] = json.loads(path.read_text())
+    table = format_beside(results, split)
+    note = (
+        "\n\nEach column is a model trained on views of one look and tested on the same split's "
+        "views of that look: the same houses and tasks, the expert playing them (its path "
+        "differs where an action's outcome does, a thin object it cannot pick, say); "
+        "`maniskill-tidy perception-report --agents "
+        f"{agents} --beside {' --beside '.join(map(str, others))}`.\n"
+    )
+    from maniskill_tidy.common.files import write_atomic
+
+    out = agents / f"{split.upper()}_BESIDE.md"
+    write_atomic(out, (table + note).encode())
+    return table + note + f"\nwrote {out}"
 
 
 def draw_curves(cards: dict[str, dict], path: Path) -> None:
