@@ -86,6 +86,10 @@ def test_demos_resume_and_refuse_another_configuration(demos, small_dataset):
         )
     with pytest.raises(ValueError, match="unknown teacher 'oracle'"):
         build_demo_features(demos, str(small_dataset), replace(DEMOS, teacher="oracle"))
+    with pytest.raises(ValueError, match=r"other settings \(env\)"):  # one look per folder
+        build_demo_features(
+            demos, str(small_dataset), replace(DEMOS, env="HeteroTidy-v2"), progress=False
+        )
 
 
 def test_demos_hash_names_the_data_not_how_long_it_took(demos, tmp_path):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import gymnasium as gym
+import pytest
 
 import maniskill_tidy  # noqa: F401
 from maniskill_tidy.envs.actions import Targeted
@@ -42,3 +43,8 @@ def test_demonstrations_hold_labels_in_range_and_replay_exactly(tmp_path):
     # a second call finds the shard and does not redo it
     again = write_demonstrations(tmp_path, None, "train", "I", tasks=1, progress=False)
     assert again["trajectories"] == 5 and again["steps"] == manifest["steps"]
+    # the look decides what the expert's cameras see, so v2 trajectories are refused in v1's
+    # folder (and the other way round), before anything is played
+    with pytest.raises(ValueError, match=r"other settings \(env\)"):
+        write_demonstrations(tmp_path, None, "train", "I", tasks=1, progress=False,
+                             env_id="HeteroTidy-v2")  # fmt: skip

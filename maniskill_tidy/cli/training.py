@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from maniskill_tidy.cli.options import ray_option
+from maniskill_tidy.cli.options import env_option, ray_option
 
 TRAIN_DEFAULTS = {"dataset": "data/tidy120", "out": "agents/perception",
                   "work": "data/perception", "seed": 0, "workers": 2,
@@ -18,7 +18,7 @@ def _demos(args: argparse.Namespace) -> int:
 
         out = Path(args.out or "data/demos")
         cfg = DemoConfig(args.setting, args.split, args.starts, args.tasks_per_house,
-                         args.houses, args.seed, args.teacher, args.student)  # fmt: skip
+                         args.houses, args.seed, args.teacher, args.student, args.env)  # fmt: skip
         m = build_demo_features(out, args.dataset, cfg, workers=args.workers, ray=args.ray)
         folder = out / f"setting_{args.setting}" / args.split
         print(
@@ -34,8 +34,9 @@ def _demos(args: argparse.Namespace) -> int:
 
     args.out = args.out or "data/trajectories"
     m = write_demonstrations(
-        Path(args.out), args.dataset, args.split, args.setting, tasks=args.tasks, seed=args.seed
-    )
+        Path(args.out), args.dataset, args.split, args.setting, tasks=args.tasks, seed=args.seed,
+        env_id=args.env,
+    )  # fmt: skip
     print(
         f"wrote {m['trajectories']} trajectories ({m['steps']} steps, expert success "
         f"{m['expert_success']:.3f}) to {Path(args.out) / f'setting_{args.setting}' / args.split}"
@@ -130,6 +131,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
         help="with --features: DAgger; this team (a policy or agent config) plays and the "
         "teacher labels the states it reaches",
     )
+    env_option(dm)
     dm.set_defaults(func=_demos)
 
     tr = sub.add_parser("train", help="train the paper's learned modules (CPU)")

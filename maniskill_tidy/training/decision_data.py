@@ -84,6 +84,7 @@ class DemoConfig:
     seed: int = 0
     teacher: str = "expert"  # the team whose labels are imitated (a registered policy name)
     student: str | None = None  # DAgger: this team plays, the teacher labels (a policy or config)
+    env: str = "HeteroTidy-v1"  # the look the demonstrations are rendered in
 
 
 def subtask_codes(subtask) -> tuple[int, int, int, int]:
@@ -237,7 +238,7 @@ def env_setting(cfg: DemoConfig):
 
 
 def _init(dataset: str | None, cfg: DemoConfig):
-    env = worker_env(dataset, env_setting(cfg), cfg.split)
+    env = worker_env(dataset, env_setting(cfg), cfg.split, cfg.env)
     _worker.update(env=env, cfg=cfg)
     return env.close
 
@@ -306,8 +307,7 @@ def build_demo_features(
         if why:
             raise ValueError(f"student {cfg.student!r}: {why}")
     probe = gym.make(
-        "HeteroTidy-v1", setting=env_setting(cfg), dataset=dataset, split=cfg.split,
-        obs_mode="none",
+        cfg.env, setting=env_setting(cfg), dataset=dataset, split=cfg.split, obs_mode="none",
     )  # fmt: skip
     episodes = probe.unwrapped.episodes
     dataset_hash = episodes.dataset_hash
@@ -317,7 +317,9 @@ def build_demo_features(
     want = {"format_version": FORMAT_VERSION, "dataset_hash": dataset_hash, **asdict(cfg)}
     if cfg.student is None:  # folders made before DAgger existed stay valid
         del want["student"]
-    check_same_config(directory / "manifest.json", want)
+    if cfg.env == "HeteroTidy-v1":  # and those made before v2 existed
+        del want["env"]
+    check_same_config(directory / "manifest.json", want, defaults={"env": "HeteroTidy-v1"})
     directory.mkdir(parents=True, exist_ok=True)
     jobs = [
         (h, idx, str(directory / f"{h}.npz"))

@@ -37,6 +37,7 @@ from tqdm import tqdm
 
 from maniskill_tidy.common.files import write_atomic
 from maniskill_tidy.envs.actions import Action, Targeted
+from maniskill_tidy.training.house_jobs import check_same_config
 
 FORMAT_VERSION = 1
 
@@ -104,15 +105,18 @@ def write_demonstrations(
     tasks: int | None = None,
     seed: int = 0,
     progress: bool = True,
+    env_id: str = "HeteroTidy-v1",
 ) -> dict:
-    """Write the expert's trajectories for a split (resumable per house); returns the manifest."""
+    """Write the expert's trajectories for a split (resumable per house); returns the manifest.
+    ``env_id`` is the look: no image is stored, but what the expert's cameras see decides
+    whether a PickUp succeeds, so each look has its own trajectories."""
     import gymnasium as gym
 
     from maniskill_tidy.common.provenance import code_version
     from maniskill_tidy.policies.expert import ExpertTeam
 
     env = gym.make(
-        "HeteroTidy-v1",
+        env_id,
         setting=setting,
         dataset=dataset,
         split=split,
@@ -130,6 +134,10 @@ def write_demonstrations(
         if e.task.id in keep:
             by_house[e.house_id].append(i)
     directory = Path(out) / f"setting_{setting}" / split
+    look = {"env": env_id} if env_id != "HeteroTidy-v1" else {}  # v1 folders predate the field
+    want = {"setting": setting, "split": split, "dataset_hash": u.episodes.dataset_hash,
+            "seed": seed, **look}  # fmt: skip
+    check_same_config(directory / "manifest.json", want, defaults={"env": "HeteroTidy-v1"})
     directory.mkdir(parents=True, exist_ok=True)
     team = ExpertTeam()
     total = sum(len(v) for v in by_house.values())
@@ -161,6 +169,7 @@ def write_demonstrations(
         **counts,
         "expert_success": counts["successes"] / max(counts["trajectories"], 1),
         "seed": seed,
+        **look,
         "code_version": code_version(),
     }
     write_atomic(directory / "manifest.json", json.dumps(manifest, indent=1).encode())

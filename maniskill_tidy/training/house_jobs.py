@@ -79,12 +79,15 @@ def shards_digest(directory: Path, pattern: str) -> str:
     return digest.hexdigest()
 
 
-def check_same_config(manifest: Path, want: dict) -> None:
-    """Refuse to mix shards made with two configurations in one folder."""
+def check_same_config(manifest: Path, want: dict, defaults: dict | None = None) -> None:
+    """Refuse to mix shards made with two configurations in one folder. ``defaults``: the
+    value a key had before manifests recorded it (the look: HeteroTidy-v1)."""
     if not manifest.is_file():
         return
     old = json.loads(manifest.read_text())
-    differ = [k for k, v in want.items() if old.get(k) != v]
+    defaults = defaults or {}
+    keys = [*want, *(k for k in defaults if k not in want)]
+    differ = [k for k in keys if old.get(k, defaults.get(k)) != want.get(k, defaults.get(k))]
     if differ:
         raise ValueError(
             f"{manifest.parent} holds shards built with other settings ({', '.join(differ)}); "
