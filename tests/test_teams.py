@@ -391,3 +391,32 @@ def test_two_agents_without_messages_get_past_each_other():
     env.close()
     assert blocked_moves > 0, "the set-up should make them bump into each other"
     assert reached == set(goals), f"only {reached} got through in 60 steps"
+
+
+class _Actions:
+    def start(self, env, team, channel) -> None:
+        self.steps: list = []
+
+    def decided(self, t, actions, labels) -> None:
+        self.steps.append((dict(actions), dict(labels)))
+
+
+@pytest.mark.parametrize("policy", ["heuristic-broadcast", "hangrcom"])
+def test_agents_thinking_on_threads_act_as_on_one(policy, monkeypatch):
+    """The runner calls a thread-safe team's agents on several threads: every action, label
+    and message total is what one thread gives (no agent reads another's state)."""
+    import gymnasium as gym
+
+    cfg = RunConfig(policy, "I", "test", None)
+    env = gym.make(cfg.env, **cfg.env_kwargs(False), max_steps=80)  # 80 steps tell enough
+    played = {}
+    try:
+        for threads in ("1", "3"):
+            monkeypatch.setenv("TIDY_AGENT_THREADS", threads)
+            log = _Actions()
+            record = play_episode(env, make_team(policy), 0, 0, [log])
+            played[threads] = (dataclasses.replace(record, seconds=0.0), log.steps)
+    finally:
+        env.close()
+    assert make_team(policy).threadsafe_agents
+    assert played["1"] == played["3"]

@@ -28,7 +28,11 @@ MAX_ATTEMPTS = 3  # actors one job may lose before the run stops
 # The thread pools a worker process would otherwise size to every core of the machine: lavapipe's
 # rasteriser (LP_NUM_THREADS), OpenMP (torch's intra-op pool, open3d's loops) and the BLAS
 # libraries. N workers each spreading over all cores fight for them (issue 48).
-THREAD_KNOBS = ("LP_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
+# TIDY_AGENT_THREADS: the threads a team's agents think on (``agent_pool``).
+THREAD_KNOBS = (
+    "LP_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS",
+    "TIDY_AGENT_THREADS",
+)  # fmt: skip
 
 
 class WorkerLostError(RuntimeError):
@@ -62,6 +66,22 @@ def worker_threads(workers: int) -> int:
     """Threads each of ``workers`` local processes may use: its share of this machine's cores."""
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     return max(1, (cores or 1) // max(1, workers))
+
+
+_agent_pools: dict[int, Any] = {}
+
+
+def agent_pool():
+    """A thread pool for a team's agents (``TIDY_AGENT_THREADS`` threads, else every core of
+    this process's share), or None where that is one thread."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    threads = int(os.environ.get("TIDY_AGENT_THREADS") or worker_threads(1))
+    if threads < 2:
+        return None
+    if threads not in _agent_pools:
+        _agent_pools[threads] = ThreadPoolExecutor(threads, thread_name_prefix="agent")
+    return _agent_pools[threads]
 
 
 @contextmanager

@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from maniskill_tidy.common.parallel import agent_pool
 from maniskill_tidy.eval.metrics import EpisodeRecord
 from maniskill_tidy.policies.base import (
     OBSERVATION_KEYS,
@@ -56,6 +57,7 @@ class Execution:
         self.channel = Channel(public.agents, central=team.central)
         self.agents: dict[str, Agent] = {}
         self.central_node = None
+        self.pool = agent_pool() if getattr(team, "threadsafe_agents", False) else None
         if isinstance(team, PrivilegedTeam):
             team.reset(public, env)
         else:
@@ -74,9 +76,8 @@ class Execution:
             return self.team.act(info)
         active = [a.name for a in self.env.agents if not a.stopped]
         failed = info.get("failed", {})
-        for name in active:
-            view = AgentView(name, self.t, _read_only(obs[name]), failed.get(name, ""))
-            self.agents[name].observe(view)
+        views = {n: AgentView(n, self.t, _read_only(obs[n]), failed.get(n, "")) for n in active}
+        self._each(lambda n: self.agents[n].observe(views[n]), active)
         for r in range(self.team.rounds):
             self.channel.round = r
             for name in active:
@@ -84,7 +85,16 @@ class Execution:
             if self.central_node is not None:
                 self.central_node.send(r, self.channel.inbox(CENTRAL, before_round=r + 1))
         self.t += 1
-        return {name: self.agents[name].act(self.channel.inbox(name)) for name in active}
+        inboxes = {n: self.channel.inbox(n) for n in active}
+        acts = self._each(lambda n: self.agents[n].act(inboxes[n]), active)
+        return dict(zip(active, acts, strict=True))
+
+    def _each(self, call, names: list[str]) -> list:
+        """``call(name)`` for every agent, in order; on the agent threads where the team allows
+        (each agent touches only its own state, so the results are those of one thread)."""
+        if self.pool is None or len(names) < 2:
+            return [call(n) for n in names]
+        return list(self.pool.map(call, names))
 
     def traces(self) -> dict[str, dict]:
         if isinstance(self.team, PrivilegedTeam):

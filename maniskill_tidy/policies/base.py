@@ -174,6 +174,9 @@ class Team(ABC):
     # Given the misplaced objects' locations at reset (``PublicInfo.oracle_misplaced``): the
     # paper's SA(Oracle). Such a team reads the task, so its rows are privileged too.
     oracle: ClassVar[bool] = False
+    # Its agents' observe and act touch nothing but their own state (as this interface asks),
+    # so the runner may call them on several threads at once: the same results, sooner.
+    threadsafe_agents: ClassVar[bool] = False
 
     @abstractmethod
     def make_agent(self, name: str, public: PublicInfo, outbox: Outbox) -> Agent:

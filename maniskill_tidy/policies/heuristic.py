@@ -340,6 +340,7 @@ class HeuristicTeam(Team):
     communication = "none"
     observations = "depth+segmentation"  # no colour: the env skips reading it back
     perception = "ground-truth segmentation + depth, open3d semantic map"
+    threadsafe_agents = True
 
     def make_agent(self, name: str, public: PublicInfo, outbox: Outbox) -> Agent:
         return HeuristicAgent(name, public, outbox, self.communication)

@@ -327,6 +327,7 @@ class LearnedTeam(Team):
     observations = "rgb+depth+segmentation"
     communication = "hangrcom"
     rounds = 3
+    threadsafe_agents = True
     perception: ClassVar[str] = describe("agents/perception/knowledge", DecisionConfig())
 
     config_file: ClassVar[Path] = DEFAULT_CONFIG
