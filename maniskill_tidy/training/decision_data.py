@@ -52,6 +52,7 @@ import numpy as np
 from tqdm import tqdm
 
 from maniskill_tidy.common.files import write_atomic
+from maniskill_tidy.common.parallel import agent_pool
 from maniskill_tidy.envs.actions import Action, Targeted
 from maniskill_tidy.knowledge import ROOM_TYPES, load_catalog
 from maniskill_tidy.perception.crops import WIDE_SIZE
@@ -162,11 +163,15 @@ class DemoRecorder:
 
     def observed(self, t: int, obs: dict, info: dict) -> None:
         failed = info.get("failed", {})
+        names = [a.name for a in self.env.agents if not a.stopped]
+        # each agent's reader fuses its own map: independent, so on the agent threads
+        pool = agent_pool()
+        read = (pool.map if pool is not None else map)(
+            lambda n: self.readers[n].read(obs[n]), names
+        )  # fmt: skip
         self.pending = {
-            a.name: (self.readers[a.name].read(obs[a.name]), bool(failed.get(a.name, "")))
-            for a in self.env.agents
-            if not a.stopped
-        }
+            n: (f, bool(failed.get(n, ""))) for n, f in zip(names, read, strict=True)
+        }  # fmt: skip
         if self.shadow is not None:
             self.shadow.observed(obs, info)
 

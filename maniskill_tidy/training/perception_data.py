@@ -38,6 +38,7 @@ import numpy as np
 from tqdm import tqdm
 
 from maniskill_tidy.common.files import write_atomic
+from maniskill_tidy.common.parallel import agent_pool
 from maniskill_tidy.houses.schema import House
 from maniskill_tidy.knowledge import ROOM_TYPES, load_catalog, load_placement
 from maniskill_tidy.perception.frame_inputs import DETECTION_NUMERIC, IMAGE, FrameReader
@@ -126,11 +127,13 @@ class ViewCollector:
 
     def log_step(self, t, obs, actions, info, channel, labels) -> None:
         u, things = self.env, None
-        for a in u.agents:
-            if a.stopped:
-                continue
+        active = [a for a in u.agents if not a.stopped]
+        # each agent's map is its own: fused on the agent threads, sampled in order here
+        pool = agent_pool()
+        fuse = lambda a: self.readers[a.name].map.update(obs[a.name])  # noqa: E731
+        list(pool.map(fuse, active) if pool is not None else map(fuse, active))
+        for a in active:
             reader = self.readers[a.name]
-            reader.map.update(obs[a.name])
             if t % self.every == 0:
                 if things is None:  # where everything stands now, once per sampled step
                     things = self._things()
