@@ -104,10 +104,19 @@ def main(argv: list[str] | None = None) -> int:
         if args.only == "throughput":
             return 0
     if args.only in (None, "teams"):
-        from maniskill_tidy.eval.team_benchmark import TEAMS, bench_team, bench_workers, report
+        from maniskill_tidy.eval.team_benchmark import (
+            TEAMS,
+            bench_demos,
+            bench_team,
+            bench_workers,
+            report,
+        )
 
-        rows = [bench_team(team, dataset=args.eval_dataset) for team in TEAMS]
-        print(report(rows, [bench_workers(team, dataset=args.eval_dataset) for team in TEAMS]))
+        looks = ("HeteroTidy-v1", "HeteroTidy-v2")
+        data = args.eval_dataset
+        rows = [bench_team(team, dataset=data, env_id=v) for v in looks for team in TEAMS]
+        workers = [bench_workers(team, dataset=data) for team in TEAMS]
+        print(report(rows, workers, [bench_demos(dataset=data, env_id=v) for v in looks]))
         print()
         if args.only == "teams":
             return 0

@@ -87,7 +87,22 @@ def bench_workers(policy: str, episodes: int = 4, dataset: str | None = None) ->
     return {"team": policy, "episodes": episodes, "two_over_one": rate[2] / rate[1]}
 
 
-def report(rows: list[dict], workers: list[dict]) -> str:
+def bench_demos(houses: int = 2, dataset: str | None = None, env_id: str = "HeteroTidy-v1") -> dict:
+    """Seconds per trajectory of ``demos --features`` (the expert teaching, every camera drawn,
+    every agent's inputs read), one process, the first meta-task's first start of ``houses``
+    train houses."""
+    from maniskill_tidy.training.decision_data import DemoConfig, build_demo_features
+
+    cfg = DemoConfig("I", "train", starts=1, tasks=1, houses=houses, env=env_id)
+    with tempfile.TemporaryDirectory(prefix="bench-demos-") as out:
+        start = time.perf_counter()
+        m = build_demo_features(Path(out), dataset, cfg, workers=1, progress=False)
+        seconds = time.perf_counter() - start
+    return {"env_id": env_id, "trajectories": m["trajectories"],
+            "seconds": seconds / m["trajectories"], "demos_hash": m["demos_hash"]}  # fmt: skip
+
+
+def report(rows: list[dict], workers: list[dict], demos: list[dict] = ()) -> str:
     lines = [
         "teams: seconds per episode playing, and of the env alone replaying the same actions",
         f"{'team':>20} {'env':>13} {'episodes':>8} {'team s/ep':>9} {'env s/ep':>8} {'x env':>6}",
@@ -100,4 +115,10 @@ def report(rows: list[dict], workers: list[dict]) -> str:
     lines.append(f"{'team':>20} {'episodes':>8} {'2 workers / 1':>14}")
     for w in workers:
         lines.append(f"{w['team']:>20} {w['episodes']:>8} {w['two_over_one']:>14.2f}")
+    if demos:
+        lines.append(f"{'demos --features':>20} {'env':>13} {'traj.':>8} {'s/traj.':>9} "
+                     f"{'demos hash':>12}")  # fmt: skip
+        for d in demos:
+            lines.append(f"{'':>20} {d['env_id']:>13} {d['trajectories']:>8} "
+                         f"{d['seconds']:>9.2f} {d['demos_hash'][:12]:>12}")  # fmt: skip
     return "\n".join(lines)
