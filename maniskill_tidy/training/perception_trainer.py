@@ -377,15 +377,21 @@ def _card(variant, knowledge, dataset, views_root, train, val, cfg, stages, view
 def model_card(card: dict) -> str:
     """The human-readable card next to a checkpoint."""
     val = card.get("val", {})
+    look = card["config"].get("env", "HeteroTidy-v1")
+    if look == "HeteroTidy-v1":
+        made = "`maniskill-tidy train perception` (`make train`)"
+    else:
+        made = f"`maniskill-tidy train perception --env {look} --out FOLDER`"
     lines = [
         f"# {card['variant']}: the paper's perception and reasoning modules"
         + ("" if card["knowledge"] else " without the knowledge graph (w/o Know.)"),
         "",
-        "Trained by `maniskill-tidy train perception` (`make train`); figures on the test split:",
+        f"Trained by {made}; figures on the test split:",
         "`maniskill-tidy perception-report` (TEST.md beside this card).",
         "",
         "| | |",
         "|---|---|",
+        f"| views rendered in | {look} |",
         f"| dataset hash | `{card['dataset_hash'][:12]}` |",
         f"| views hash (train/val/test frames and detections) | `{card['views_hash'][:12]}` |",
         f"| code version | `{card['code_version']}` |",
