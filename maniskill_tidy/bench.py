@@ -104,13 +104,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.only == "throughput":
             return 0
     if args.only in (None, "teams"):
-        from maniskill_tidy.eval.team_benchmark import (
-            TEAMS,
-            bench_demos,
-            bench_team,
-            bench_workers,
-            report,
-        )
+        from maniskill_tidy.eval.team_benchmark import TEAMS, bench_team, bench_workers, report
+        from maniskill_tidy.training.demos_benchmark import bench_demos
 
         looks = ("HeteroTidy-v1", "HeteroTidy-v2")
         data = args.eval_dataset

@@ -87,21 +87,6 @@ def bench_workers(policy: str, episodes: int = 4, dataset: str | None = None) ->
     return {"team": policy, "episodes": episodes, "two_over_one": rate[2] / rate[1]}
 
 
-def bench_demos(houses: int = 2, dataset: str | None = None, env_id: str = "HeteroTidy-v1") -> dict:
-    """Seconds per trajectory of ``demos --features`` (the expert teaching, every camera drawn,
-    every agent's inputs read), one process, the first meta-task's first start of ``houses``
-    train houses."""
-    from maniskill_tidy.training.decision_data import DemoConfig, build_demo_features
-
-    cfg = DemoConfig("I", "train", starts=1, tasks=1, houses=houses, env=env_id)
-    with tempfile.TemporaryDirectory(prefix="bench-demos-") as out:
-        start = time.perf_counter()
-        m = build_demo_features(Path(out), dataset, cfg, workers=1, progress=False)
-        seconds = time.perf_counter() - start
-    return {"env_id": env_id, "trajectories": m["trajectories"],
-            "seconds": seconds / m["trajectories"], "demos_hash": m["demos_hash"]}  # fmt: skip
-
-
 def report(rows: list[dict], workers: list[dict], demos: list[dict] = ()) -> str:
     lines = [
         "teams: seconds per episode playing, and of the env alone replaying the same actions",
