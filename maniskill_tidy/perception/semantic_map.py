@@ -197,8 +197,8 @@ class SemanticMap:
         k[0, 2] -= 0.5  # open3d puts pixel u at u, the renderer's model at u + 0.5
         k[1, 2] -= 0.5
         h, w = label.shape
-        v, u = np.mgrid[0:h, 0:w].astype(np.float32)  # carried through as colours
-        colour = np.stack([label.astype(np.float32), v, u], axis=2)
+        colour = self._colour_buffer(h, w)  # label, row, column: carried through as colours
+        colour[..., 0] = label
         # A hit lies on a surface, often exactly on a cell boundary: push it a little along the
         # optical axis so that it lands in the voxel of the surface it belongs to.
         depth = np.where(depth > 0, depth + np.float32(INTO_SURFACE), np.float32(0))
@@ -220,6 +220,16 @@ class SemanticMap:
         order = np.argsort(pixels[:, 0] * w + pixels[:, 1], kind="stable")
         positions = cloud.point.positions.numpy()[order]
         return positions, colours[order, 0].astype(np.uint8), pixels[order]
+
+    def _colour_buffer(self, h: int, w: int) -> np.ndarray:
+        """(h, w, 3) float32 holding every pixel's row and column in channels 1 and 2, made
+        once per image size; channel 0 (the label) is rewritten per frame."""
+        buffer = getattr(self, "_colour", None)
+        if buffer is None or buffer.shape[:2] != (h, w):
+            buffer = np.zeros((h, w, 3), dtype=np.float32)
+            buffer[..., 1], buffer[..., 2] = np.mgrid[0:h, 0:w]
+            self._colour = buffer
+        return buffer
 
     def _fuse(self, points: np.ndarray, labels: np.ndarray) -> np.ndarray:
         """Write the points' labels into their voxels; returns the flat column indices hit."""
