@@ -47,6 +47,7 @@ import open3d as o3d
 
 from maniskill_tidy.houses.schema import House
 from maniskill_tidy.knowledge import load_catalog
+from maniskill_tidy.perception import map_kernels as kernels
 from maniskill_tidy.perception.crops import egocentric_crop, pool_to_planner, wide_layout
 from maniskill_tidy.perception.frontiers import Frontier, find_frontiers
 from maniskill_tidy.perception.map_grid import (
@@ -172,12 +173,9 @@ class SemanticMap:
         self._mark_visible_floor(depth, obs["intrinsics"], obs["extrinsics"], obs.get("pose"))
         # Every pixel with a depth is back-projected once; robots, the held object and empty
         # space (label UNKNOWN) stay out of the map but are kept in ``last_frame``.
-        points, point_labels, pixels = self._backproject(depth, label, obs)
+        points, point_labels, pixels, point_seg = self._backproject(depth, label, obs)
         self.last_frame = FramePoints(
-            points,
-            seg[pixels[:, 0], pixels[:, 1]],
-            camera_position(obs["extrinsics"]),
-            self.config.stride,
+            points, point_seg, camera_position(obs["extrinsics"]), self.config.stride
         )
         mapped = point_labels != UNKNOWN
         points, point_labels, pixels = points[mapped], point_labels[mapped], pixels[mapped]
@@ -186,9 +184,7 @@ class SemanticMap:
         extra, extra_labels = densify(
             points, point_labels, pixels, seg, depth, self.config.cell, self.config.stride
         )
-        touched = self._fuse(
-            np.concatenate([points, extra]), np.concatenate([point_labels, extra_labels])
-        )
+        touched = self._fuse(points, point_labels, extra, extra_labels)
         self._refresh_columns(np.union1d(touched, cleared) if len(cleared) else touched)
         self.frames += 1
 
@@ -212,14 +208,15 @@ class SemanticMap:
             stride=self.config.stride,
         )
         if cloud.is_empty():
-            return np.zeros((0, 3)), np.zeros(0, dtype=np.uint8), np.zeros((0, 2), np.int64)
-        colours = cloud.point.colors.numpy()
-        pixels = colours[:, 1:].astype(np.int64)
+            return (np.zeros((0, 3)), np.zeros(0, dtype=np.uint8),
+                    np.zeros((0, 2), np.int64), np.zeros(0, obs["segmentation"].dtype))  # fmt: skip
         # open3d emits the points in an order that varies between calls (parallel chunks);
         # fusion keeps the last label written to a voxel, so fix the order: row-major pixels.
-        order = np.argsort(pixels[:, 0] * w + pixels[:, 1], kind="stable")
-        positions = cloud.point.positions.numpy()[order]
-        return positions, colours[order, 0].astype(np.uint8), pixels[order]
+        points, pixels, seg, labels = kernels.ordered_points(
+            cloud.point.colors.numpy(), cloud.point.positions.numpy(),
+            np.asarray(obs["segmentation"]), label, w, h,
+        )  # fmt: skip
+        return points, labels, pixels, seg
 
     def _colour_buffer(self, h: int, w: int) -> np.ndarray:
         """(h, w, 3) float32 holding every pixel's row and column in channels 1 and 2, made
@@ -231,27 +228,17 @@ class SemanticMap:
             self._colour = buffer
         return buffer
 
-    def _fuse(self, points: np.ndarray, labels: np.ndarray) -> np.ndarray:
-        """Write the points' labels into their voxels; returns the flat column indices hit."""
-        rows, cols = self.frame.shape
+    def _fuse(self, points, labels, extra, extra_labels) -> np.ndarray:
+        """Write the points' labels into their voxels, the observed points first, then the
+        filled-in ones; returns the flat column indices hit."""
         origin = np.array([*self.frame.origin, 0.0], dtype=np.float32)
-        ijk = np.floor((points.astype(np.float32) - origin) / np.float32(self.config.cell))
-        ijk = ijk.astype(np.int32)  # (x, y, z) cells
-        ijk[(ijk[:, 2] == -1) & (labels == FLOOR_LABEL), 2] = 0  # the floor's rendered surface
-        x, y, z = ijk[:, 0], ijk[:, 1], ijk[:, 2]
-        on_map = (x >= 0) & (x < cols) & (y >= 0) & (y < rows)
-        column = y[on_map] * cols + x[on_map]
-        self.explored.reshape(-1)[column] = True
-        stored = (z[on_map] >= 0) & (z[on_map] < self.layers)
-        flat = column[stored].astype(np.int64) * self.layers + z[on_map][stored]
-        labels = labels[on_map][stored]
-        self.voxels.reshape(-1)[flat] = labels
-        moving = flat[self._movable[labels]]
+        touched, moving = kernels.fuse_points(
+            points, extra, labels, extra_labels, self.voxels, self.explored, self._movable,
+            origin, np.float32(self.config.cell), FLOOR_LABEL,
+        )  # fmt: skip
         if len(moving):
             self._movable_voxels = np.union1d(self._movable_voxels, moving)
-        hit = np.zeros(rows * cols, dtype=bool)
-        hit[column] = True
-        return np.flatnonzero(hit)
+        return touched
 
     def _mark_visible_floor(self, depth, intrinsics, extrinsics, pose) -> None:
         """Explored: cells whose centre, on the floor, falls on a pixel that sees the floor.
@@ -261,19 +248,13 @@ class SemanticMap:
         k = np.asarray(intrinsics, dtype=np.float64)
         camera = camera_position(ext)
         reach = self.config.max_depth
-        r, c = self._view_window(camera, ext, k, depth.shape, reach)
-        xy = self.frame.centres(r, c)
-        cam = np.column_stack([xy, np.zeros(len(xy))]) @ ext[:3, :3].T + ext[:3, 3]
-        u, v, ok = project_points(cam, k, depth.shape)
-        ok &= cam[:, 2] <= reach
-        d = depth[v[ok], u[ok]].astype(np.float64)
-        ray = np.column_stack(
-            [(u[ok] + 0.5 - k[0, 2]) / k[0, 0], (v[ok] + 0.5 - k[1, 2]) / k[1, 1]]
+        r0, r1, c0, c1 = self._view_window(camera, ext, k, depth.shape, reach)
+        origin = np.asarray(self.frame.origin, dtype=np.float64)
+        r, c, xyz = kernels.unexplored_cells(r0, r1, c0, c1, self.explored, origin, self.frame.cell)
+        cam = xyz @ ext[:3, :3].T + ext[:3, 3]  # numpy's matmul: the kernels do no BLAS
+        kernels.mark_floor_seen(
+            cam, r, c, depth, k, ext, camera[2], reach, FLOOR_HIT, self.explored
         )
-        height = camera[2] + d * (ray[:, 0] * ext[0, 2] + ray[:, 1] * ext[1, 2] + ext[2, 2])
-        floor = (d > 0) & (height < FLOOR_HIT)
-        idx = np.flatnonzero(ok)[floor]
-        self.explored[r[idx], c[idx]] = True
         if pose is not None:  # the agent stands there: known, though never in view
             x, y, pad = float(pose[0]), float(pose[1]), ROBOT_FOOTPRINT + self.config.cell
             rows, cols = self.frame.cells_of(np.array([[x - pad, y - pad], [x + pad, y + pad]]))
@@ -284,8 +265,8 @@ class SemanticMap:
             near = np.hypot(xy[..., 0] - x, xy[..., 1] - y) <= ROBOT_FOOTPRINT
             self.explored[rr[near], cc[near]] = True
 
-    def _view_window(self, camera, ext, k, shape, reach) -> tuple[np.ndarray, np.ndarray]:
-        """Map cells (rows, cols) of the box around what the camera sees within ``reach``:
+    def _view_window(self, camera, ext, k, shape, reach) -> tuple[int, int, int, int]:
+        """First and last rows and columns of the box around what the camera sees within ``reach``:
         the camera and the horizontal rays through the image's corners and centre."""
         h, w = shape
         pixels = np.array([[0, 0], [w, 0], [0, h], [w, h], [w / 2, h / 2]], dtype=np.float64)
@@ -303,10 +284,7 @@ class SemanticMap:
             np.clip(self.frame.cells_of(np.array([lo, hi]))[i], 0, n)
             for i, n in enumerate(self.frame.shape)
         )
-        r, c = np.mgrid[r0 : r1 + 1, c0 : c1 + 1]
-        r, c = r.ravel(), c.ravel()
-        keep = (r < self.frame.shape[0]) & (c < self.frame.shape[1])
-        return r[keep], c[keep]
+        return int(r0), int(r1), int(c0), int(c1)
 
     def _clear_seen_through(self, depth, label, intrinsics, extrinsics) -> np.ndarray:
         """Clear stored object voxels the camera now sees past, or sees something else right at
@@ -335,13 +313,11 @@ class SemanticMap:
 
     def _refresh_columns(self, columns: np.ndarray) -> None:
         """Re-read the top-down channels of the (unique) columns whose voxels changed."""
-        voxels = self.voxels.reshape(-1, self.layers)[columns]  # (n, layers)
-        td = self._top_down.reshape(-1, self.channels)
-        td[columns] = 0
         lo, hi = self._band
-        td[columns, OBSTACLE] = self._blocks[voxels[:, lo:hi]].any(axis=1)
-        i, z = np.nonzero(voxels >= FIRST_CATEGORY)
-        td[columns[i], FIRST_CHANNEL + voxels[i, z].astype(np.int64) - FIRST_CATEGORY] = 1
+        kernels.refresh_columns(
+            columns, self.voxels, self._top_down, self._blocks, lo, hi,
+            FIRST_CATEGORY, FIRST_CHANNEL, OBSTACLE,
+        )  # fmt: skip
 
     # ------------------------------------------------------------------ reading
     def top_down(self) -> np.ndarray:
@@ -417,25 +393,17 @@ def densify(
     every 10-30 cm; the cells between rows would read as explored (the floor under the table
     is visible) but free. Gaps wider than ``MAX_GAP`` are left alone: they cross an edge."""
     if len(points) == 0:
-        return points[:0], labels[:0]
+        return np.zeros((0, 3)), labels[:0]
     v, u = pixels[:, 0] // stride, pixels[:, 1] // stride
     index = np.full(seg[::stride, ::stride].shape, -1, dtype=np.int64)
     index[v, u] = np.arange(len(points))
-    # Candidates from the images alone: a pixel and the one below it both hit one instance
-    # and their depths differ by more than a neighbour's gap can without one (3.5 cm at 5 m).
-    g, d = seg[::stride, ::stride], depth[::stride, ::stride]
-    near = (index[:-1] >= 0) & (index[1:] >= 0) & (g[:-1] == g[1:])
-    near &= np.abs(d[:-1] - d[1:]) > MIN_STEP
-    a, b = index[:-1][near], index[1:][near]
-    gap = np.linalg.norm(points[a] - points[b], axis=1)
-    wide = (gap > cell) & (gap < MAX_GAP)
-    a, b, gap = a[wide], b[wide], gap[wide]
-    n = np.ceil(gap / cell).astype(np.int64)  # segments; n - 1 points inside
-    inner = n - 1
-    first = np.repeat(np.cumsum(inner) - inner, inner)
-    t = (np.arange(inner.sum()) - first + 1) / np.repeat(n, inner)
-    ai, bi = np.repeat(a, inner), np.repeat(b, inner)
-    return points[ai] + t[:, None] * (points[bi] - points[ai]), labels[ai]
+    # A pixel and the one below it both hit one instance and their depths differ by more
+    # than a neighbour's gap can without one (3.5 cm at 5 m), their points by over a cell.
+    a, b, n = kernels.densify_pairs(
+        index, seg[::stride, ::stride], depth[::stride, ::stride], points,
+        np.float32(cell), np.float32(MIN_STEP), np.float32(MAX_GAP),
+    )  # fmt: skip
+    return kernels.fill_gaps(points, labels, a, b, n)
 
 
 def project_points(cam: np.ndarray, k: np.ndarray, shape: tuple[int, int]):
@@ -446,5 +414,3 @@ def project_points(cam: np.ndarray, k: np.ndarray, shape: tuple[int, int]):
     u = np.floor(k[0, 0] * cam[:, 0] / z + k[0, 2]).astype(np.int64)
     v = np.floor(k[1, 1] * cam[:, 1] / z + k[1, 2]).astype(np.int64)
     return u, v, ahead & (u >= 0) & (u < w) & (v >= 0) & (v < h)
-
-

@@ -1,0 +1,199 @@
+"""The semantic map's per-point loops, compiled with numba (issue 48).
+
+Each kernel does in one pass what ``semantic_map.py`` did with a dozen numpy calls over the
+frame's ~12,000 points, whose overhead, not their arithmetic, was most of the map's cost (the
+map was two thirds of a heuristic team's thinking). They release Python's lock, so the agents
+of a team fuse their frames on threads side by side.
+
+Every kernel repeats numpy's arithmetic operation for operation, in the same precision and
+order (float32 where the numpy code worked in float32, numpy's promotion rules where it mixed),
+with no fast-math: the map is byte for byte what the numpy code made
+(``scripts/map_update_ab.py`` compares both on recorded frames), so no record changes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+# ``cache=True`` keeps the machine code beside the module (or in numba's user cache where the
+# package directory is read-only): a process compiles each kernel once, ever.
+_jit = njit(cache=True, nogil=True)
+
+
+@_jit
+def ordered_points(colours, positions, seg, labels, width, height):
+    """open3d's points in row-major pixel order (its parallel loop emits them in any order).
+
+    ``colours`` carries (label, row, column) per point. Returns the points, their pixels,
+    segmentation ids and labels; label 0 (UNKNOWN: robots, the held object) is not mapped."""
+    n = len(positions)
+    slot = np.full(width * height, -1, np.int64)
+    for i in range(n):
+        slot[np.int64(colours[i, 1]) * width + np.int64(colours[i, 2])] = i
+    points = np.empty((n, 3), np.float32)
+    pixels = np.empty((n, 2), np.int64)
+    point_seg = np.empty(n, seg.dtype)
+    point_labels = np.empty(n, np.uint8)
+    k = 0
+    for p in range(width * height):
+        i = slot[p]
+        if i < 0:
+            continue
+        points[k] = positions[i]
+        r, c = p // width, p % width
+        pixels[k, 0], pixels[k, 1] = r, c
+        point_seg[k] = seg[r, c]
+        point_labels[k] = labels[r, c]
+        k += 1
+    return points, pixels, point_seg, point_labels
+
+
+@_jit
+def densify_pairs(index, seg, depth, points, cell, min_step, max_gap):
+    """Vertically adjacent pixels (a above b) of one instance whose 3-D gap needs filling:
+    their point indices and the number of segments of the gap, in row-major order of a.
+    ``cell``, ``min_step`` and ``max_gap`` are float32, as numpy compared them."""
+    rows, cols = index.shape
+    a_out = np.empty(rows * cols, np.int64)
+    b_out = np.empty(rows * cols, np.int64)
+    n_out = np.empty(rows * cols, np.int64)
+    k = 0
+    for r in range(rows - 1):
+        for c in range(cols):
+            a, b = index[r, c], index[r + 1, c]
+            if a < 0 or b < 0 or seg[r, c] != seg[r + 1, c]:
+                continue
+            if not abs(depth[r, c] - depth[r + 1, c]) > min_step:
+                continue
+            dx = points[a, 0] - points[b, 0]
+            dy = points[a, 1] - points[b, 1]
+            dz = points[a, 2] - points[b, 2]
+            gap = np.sqrt(dx * dx + dy * dy + dz * dz)  # float32, as np.linalg.norm
+            if gap > cell and gap < max_gap:
+                a_out[k], b_out[k] = a, b
+                n_out[k] = np.int64(np.ceil(gap / cell))
+                k += 1
+    return a_out[:k], b_out[:k], n_out[:k]
+
+
+@_jit
+def fill_gaps(points, labels, a, b, n):
+    """The n - 1 points inside each gap a -> b (float64: numpy promoted t * (b - a) so)."""
+    total = 0
+    for i in range(len(n)):
+        total += n[i] - 1
+    extra = np.empty((total, 3), np.float64)
+    extra_labels = np.empty(total, labels.dtype)
+    k = 0
+    for i in range(len(n)):
+        pa, pb = points[a[i]], points[b[i]]
+        for j in range(1, n[i]):
+            t = j / n[i]
+            for d in range(3):
+                extra[k, d] = np.float64(pa[d]) + t * np.float64(pb[d] - pa[d])
+            extra_labels[k] = labels[a[i]]
+            k += 1
+    return extra, extra_labels
+
+
+@_jit
+def fuse_points(points, extra, labels, extra_labels, voxels, explored, movable, origin, cell,
+                floor_label):  # fmt: skip
+    """Write each point's label into its voxel, in order (the last write wins): the observed
+    points, then the filled-in ones. Marks their columns explored; returns the sorted columns
+    hit and the flat indices of the movable-object voxels written."""
+    rows, cols, layers = voxels.shape
+    hit = np.zeros(rows * cols, np.bool_)
+    moving = np.empty(len(points) + len(extra), np.int64)
+    m = 0
+    flat_voxels = voxels.reshape(-1)
+    flat_explored = explored.reshape(-1)
+    for i in range(len(points) + len(extra)):
+        if i < len(points):
+            p0, p1, p2, label = points[i, 0], points[i, 1], points[i, 2], labels[i]
+        else:
+            j = i - len(points)
+            p0 = np.float32(extra[j, 0])
+            p1 = np.float32(extra[j, 1])
+            p2 = np.float32(extra[j, 2])
+            label = extra_labels[j]
+        x = np.int32(np.floor((p0 - origin[0]) / cell))
+        y = np.int32(np.floor((p1 - origin[1]) / cell))
+        z = np.int32(np.floor((p2 - origin[2]) / cell))
+        if z == -1 and label == floor_label:
+            z = 0  # the floor's rendered surface
+        if x < 0 or x >= cols or y < 0 or y >= rows:
+            continue
+        column = np.int64(y) * cols + x
+        flat_explored[column] = True
+        hit[column] = True
+        if z < 0 or z >= layers:
+            continue
+        flat = column * layers + z
+        flat_voxels[flat] = label
+        if movable[label]:
+            moving[m] = flat
+            m += 1
+    return np.flatnonzero(hit), moving[:m]
+
+
+@_jit
+def refresh_columns(columns, voxels, top_down, blocks, lo, hi, first_category, first_channel,
+                    obstacle):  # fmt: skip
+    """Re-read the top-down channels of the given columns off their voxels."""
+    layers = voxels.shape[-1]
+    flat_voxels = voxels.reshape(-1, layers)
+    td = top_down.reshape(-1, top_down.shape[-1])
+    for column in columns:
+        td[column, :] = 0
+        for z in range(lo, min(hi, layers)):
+            if blocks[flat_voxels[column, z]]:
+                td[column, obstacle] = 1
+                break
+        for z in range(layers):
+            v = flat_voxels[column, z]
+            if v >= first_category:
+                td[column, first_channel + v - first_category] = 1
+
+
+@_jit
+def unexplored_cells(r0, r1, c0, c1, explored, origin, cell):
+    """Rows, columns and centres (x, y, 0) of the cells of a window not yet explored; the
+    visible-floor test only ever marks cells explored, so it can skip the others."""
+    rows, cols = explored.shape
+    r1, c1 = min(r1, rows - 1), min(c1, cols - 1)
+    n = max(r1 - r0 + 1, 0) * max(c1 - c0 + 1, 0)
+    r_out = np.empty(n, np.int64)
+    c_out = np.empty(n, np.int64)
+    xyz = np.zeros((n, 3), np.float64)
+    k = 0
+    for r in range(r0, r1 + 1):
+        for c in range(c0, c1 + 1):
+            if not explored[r, c]:
+                r_out[k], c_out[k] = r, c
+                xyz[k, 0] = origin[0] + (c + 0.5) * cell  # MapFrame.centres
+                xyz[k, 1] = origin[1] + (r + 0.5) * cell
+                k += 1
+    return r_out[:k], c_out[:k], xyz[:k]
+
+
+@_jit
+def mark_floor_seen(cam, rows, cols, depth, k, ext, camera_z, reach, floor_hit, explored):
+    """Mark explored the cells whose centre (``cam``: on the floor, in camera coordinates)
+    falls on a pixel that sees the floor (its hit lies below ``floor_hit``)."""
+    h, w = depth.shape
+    for i in range(len(cam)):
+        z = cam[i, 2]
+        if not z > 1e-6:  # project_points: behind the camera
+            continue
+        u = np.int64(np.floor(k[0, 0] * cam[i, 0] / z + k[0, 2]))
+        v = np.int64(np.floor(k[1, 1] * cam[i, 1] / z + k[1, 2]))
+        if u < 0 or u >= w or v < 0 or v >= h or not z <= reach:
+            continue
+        d = np.float64(depth[v, u])
+        ray_x = (u + 0.5 - k[0, 2]) / k[0, 0]
+        ray_y = (v + 0.5 - k[1, 2]) / k[1, 1]
+        height = camera_z + d * (ray_x * ext[0, 2] + ray_y * ext[1, 2] + ext[2, 2])
+        if d > 0 and height < floor_hit:
+            explored[rows[i], cols[i]] = True
