@@ -102,7 +102,7 @@ def test_floor_lands_at_height_zero_for_low_and_high_cameras(env, agent):
     m = SemanticMap(env.house, env.instances)
     frame = obs[agent]
     label = m.labels[frame["segmentation"]]
-    points, labels, _, _ = m._backproject(frame["depth"], label, frame)
+    _, _, points, labels, _ = m._backproject(frame["depth"], label, frame)
     floor = points[labels == FLOOR_LABEL]
     assert len(floor) > 1000
     # a camera put at the wrong height or tilt would lift or sink the floor
@@ -125,7 +125,7 @@ def test_the_same_frames_give_the_same_map(env):
     for m in maps[1:]:
         assert np.array_equal(m.voxels, maps[0].voxels)
     label = maps[0].labels[frames[0]["segmentation"]]
-    _, _, pixels, _ = maps[0]._backproject(frames[0]["depth"], label, frames[0])
+    *_, pixels = maps[0]._backproject(frames[0]["depth"], label, frames[0])
     flat = pixels[:, 0] * label.shape[1] + pixels[:, 1]
     assert (np.diff(flat) > 0).all()  # row-major, whatever order open3d chose
 

@@ -8,6 +8,7 @@ import math
 import numpy as np
 
 from maniskill_tidy.perception.map_grid import EXPLORED, FIRST_CHANNEL, OBSTACLE, MapFrame
+from maniskill_tidy.perception.map_kernels import pooled_samples
 
 
 def pool_to_planner(top_down: np.ndarray, planner_shape: tuple[int, int]) -> np.ndarray:
@@ -31,7 +32,8 @@ def egocentric_crop(
     map are 0.
     """
     sub = max(int(round(cell / frame.cell)), 1)
-    return _egocentric_samples(top_down, frame, pose, size, cell, sub).max(axis=(1, 3))
+    rows, cols = _egocentric_cells(frame, pose, size, cell, sub)
+    return pooled_samples(top_down, rows, cols, size, sub)
 
 
 WIDE_SIZE = 20  # cells of the wide layout
@@ -69,6 +71,16 @@ def _egocentric_samples(
 ) -> np.ndarray:
     """(size, sub, size, sub, channels): the map read at ``sub`` x ``sub`` points per crop
     cell of an egocentric grid (0 outside the map)."""
+    rows, cols = _egocentric_cells(frame, pose, size, cell, sub)
+    inside = (rows >= 0) & (rows < top_down.shape[0]) & (cols >= 0) & (cols < top_down.shape[1])
+    samples = np.zeros((len(rows), top_down.shape[2]), dtype=top_down.dtype)
+    samples[inside] = top_down[rows[inside], cols[inside]]
+    return samples.reshape(size, sub, size, sub, -1)
+
+
+def _egocentric_cells(frame: MapFrame, pose, size: int, cell: float, sub: int):
+    """Map rows and columns (may lie off the map) of the ``sub`` x ``sub`` sample points per
+    crop cell, in (size, sub, size, sub) order."""
     x, y, rotation = (float(v) for v in pose)
     yaw = math.radians(rotation)
     fwd = np.array([math.cos(yaw), math.sin(yaw)])
@@ -78,8 +90,4 @@ def _egocentric_samples(
     side = offsets * cell
     a, s = np.meshgrid(ahead, side, indexing="ij")
     world = np.stack([x + a * fwd[0] + s * right[0], y + a * fwd[1] + s * right[1]], axis=-1)
-    rows, cols = frame.cells_of(world.reshape(-1, 2))
-    inside = (rows >= 0) & (rows < top_down.shape[0]) & (cols >= 0) & (cols < top_down.shape[1])
-    samples = np.zeros((len(rows), top_down.shape[2]), dtype=top_down.dtype)
-    samples[inside] = top_down[rows[inside], cols[inside]]
-    return samples.reshape(size, sub, size, sub, -1)
+    return frame.cells_of(world.reshape(-1, 2))

@@ -35,10 +35,18 @@ class Detection:
     distance: float  # metres from the camera to ``position``
 
 
+def id_counts(seg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The segmentation ids present, ascending, and their counts: ``np.unique(seg,
+    return_counts=True)`` by a histogram, several times cheaper for ids as small as ours."""
+    counts = np.bincount(np.asarray(seg).ravel())
+    ids = np.flatnonzero(counts)
+    return ids, counts[ids]
+
+
 def _groups(frame: FramePoints, instances: dict, kind: str):
     """(instance, points) per instance of ``kind`` covering at least MIN_PIXELS pixels (a
     point of a strided back-projection stands for stride^2 pixels)."""
-    ids, counts = np.unique(frame.seg, return_counts=True)
+    ids, counts = id_counts(frame.seg)
     for sid, n in zip(ids, counts, strict=True):
         inst = instances.get(int(sid))
         if inst is None or inst.kind != kind or n * frame.stride**2 < MIN_PIXELS:

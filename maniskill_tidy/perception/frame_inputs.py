@@ -32,7 +32,12 @@ import numpy as np
 
 from maniskill_tidy.houses.schema import House
 from maniskill_tidy.knowledge import FLOOR, load_catalog
-from maniskill_tidy.perception.detections import detect_objects, resting_place, surface_table
+from maniskill_tidy.perception.detections import (
+    detect_objects,
+    id_counts,
+    resting_place,
+    surface_table,
+)
 from maniskill_tidy.perception.semantic_map import MapConfig, SemanticMap
 
 IMAGE = 64  # visual encoder input side (pixels)
@@ -82,7 +87,7 @@ class FrameReader:
         catalog = self.catalog
         seg = np.asarray(obs["segmentation"])
         seen = np.zeros(len(catalog.categories), dtype=np.float32)
-        ids, counts = np.unique(seg, return_counts=True)
+        ids, counts = id_counts(seg)
         for sid, n in zip(ids, counts, strict=True):
             inst = self.instances.get(int(sid))
             if inst is not None and inst.type in self.map.categories:

@@ -22,31 +22,50 @@ _jit = njit(cache=True, nogil=True)
 
 
 @_jit
+def rgbd_inputs(label, depth, colour, into_surface):
+    """open3d's inputs in one pass: the label into the colour buffer's channel 0, and the depth
+    pushed ``into_surface`` (float32) along the optical axis where there is a hit."""
+    h, w = depth.shape
+    pushed = np.empty((h, w), np.float32)
+    for r in range(h):
+        for c in range(w):
+            colour[r, c, 0] = label[r, c]
+            d = depth[r, c]
+            pushed[r, c] = d + into_surface if d > 0 else np.float32(0)
+    return pushed
+
+
+@_jit
 def ordered_points(colours, positions, seg, labels, width, height):
     """open3d's points in row-major pixel order (its parallel loop emits them in any order).
 
-    ``colours`` carries (label, row, column) per point. Returns the points, their pixels,
-    segmentation ids and labels; label 0 (UNKNOWN: robots, the held object) is not mapped."""
+    ``colours`` carries (label, row, column) per point. Returns the points and their
+    segmentation ids (every point, for ``last_frame``), and the points, labels and pixels of
+    those the map keeps: label 0 (UNKNOWN: robots, the held object) is not mapped."""
     n = len(positions)
     slot = np.full(width * height, -1, np.int64)
     for i in range(n):
         slot[np.int64(colours[i, 1]) * width + np.int64(colours[i, 2])] = i
     points = np.empty((n, 3), np.float32)
-    pixels = np.empty((n, 2), np.int64)
     point_seg = np.empty(n, seg.dtype)
-    point_labels = np.empty(n, np.uint8)
-    k = 0
+    mapped = np.empty((n, 3), np.float32)
+    mapped_pixels = np.empty((n, 2), np.int64)
+    mapped_labels = np.empty(n, np.uint8)
+    k = m = 0
     for p in range(width * height):
         i = slot[p]
         if i < 0:
             continue
-        points[k] = positions[i]
         r, c = p // width, p % width
-        pixels[k, 0], pixels[k, 1] = r, c
+        points[k] = positions[i]
         point_seg[k] = seg[r, c]
-        point_labels[k] = labels[r, c]
         k += 1
-    return points, pixels, point_seg, point_labels
+        if labels[r, c] != 0:
+            mapped[m] = positions[i]
+            mapped_pixels[m, 0], mapped_pixels[m, 1] = r, c
+            mapped_labels[m] = labels[r, c]
+            m += 1
+    return points, point_seg, mapped[:m], mapped_labels[:m], mapped_pixels[:m]
 
 
 @_jit
@@ -197,3 +216,24 @@ def mark_floor_seen(cam, rows, cols, depth, k, ext, camera_z, reach, floor_hit, 
         height = camera_z + d * (ray_x * ext[0, 2] + ray_y * ext[1, 2] + ext[2, 2])
         if d > 0 and height < floor_hit:
             explored[rows[i], cols[i]] = True
+
+
+@_jit
+def pooled_samples(top_down, rows, cols, size, sub):
+    """(size, size, channels): per crop cell the maximum over its sub x sub samples, read at
+    map cells (rows, cols) in (size, sub, size, sub) order; samples off the map read 0."""
+    n_rows, n_cols, channels = top_down.shape
+    out = np.zeros((size, size, channels), top_down.dtype)
+    i = 0
+    for a in range(size):
+        for _ in range(sub):
+            for b in range(size):
+                for _ in range(sub):
+                    r, c = rows[i], cols[i]
+                    i += 1
+                    if r < 0 or r >= n_rows or c < 0 or c >= n_cols:
+                        continue
+                    o, t = out[a, b], top_down[r, c]
+                    for k in range(channels):
+                        o[k] = max(o[k], t[k])
+    return out

@@ -173,12 +173,10 @@ class SemanticMap:
         self._mark_visible_floor(depth, obs["intrinsics"], obs["extrinsics"], obs.get("pose"))
         # Every pixel with a depth is back-projected once; robots, the held object and empty
         # space (label UNKNOWN) stay out of the map but are kept in ``last_frame``.
-        points, point_labels, pixels, point_seg = self._backproject(depth, label, obs)
+        all_points, point_seg, points, point_labels, pixels = self._backproject(depth, label, obs)
         self.last_frame = FramePoints(
-            points, point_seg, camera_position(obs["extrinsics"]), self.config.stride
+            all_points, point_seg, camera_position(obs["extrinsics"]), self.config.stride
         )
-        mapped = point_labels != UNKNOWN
-        points, point_labels, pixels = points[mapped], point_labels[mapped], pixels[mapped]
         depth = np.where(label == UNKNOWN, np.float32(0), depth)
         cleared = self._clear_seen_through(depth, label, obs["intrinsics"], obs["extrinsics"])
         extra, extra_labels = densify(
@@ -189,15 +187,16 @@ class SemanticMap:
         self.frames += 1
 
     def _backproject(self, depth: np.ndarray, label: np.ndarray, obs: dict):
+        """Every pixel with a depth as a world point: (points, segmentation ids) of all, and
+        (points, labels, pixels) of those the map keeps, in row-major pixel order."""
         k = np.asarray(obs["intrinsics"], dtype=np.float64).copy()
         k[0, 2] -= 0.5  # open3d puts pixel u at u, the renderer's model at u + 0.5
         k[1, 2] -= 0.5
         h, w = label.shape
         colour = self._colour_buffer(h, w)  # label, row, column: carried through as colours
-        colour[..., 0] = label
         # A hit lies on a surface, often exactly on a cell boundary: push it a little along the
         # optical axis so that it lands in the voxel of the surface it belongs to.
-        depth = np.where(depth > 0, depth + np.float32(INTO_SURFACE), np.float32(0))
+        depth = kernels.rgbd_inputs(label, depth, colour, np.float32(INTO_SURFACE))
         rgbd = o3d.t.geometry.RGBDImage(o3d.t.geometry.Image(colour), o3d.t.geometry.Image(depth))
         cloud = o3d.t.geometry.PointCloud.create_from_rgbd_image(
             rgbd,
@@ -208,15 +207,15 @@ class SemanticMap:
             stride=self.config.stride,
         )
         if cloud.is_empty():
-            return (np.zeros((0, 3)), np.zeros(0, dtype=np.uint8),
-                    np.zeros((0, 2), np.int64), np.zeros(0, obs["segmentation"].dtype))  # fmt: skip
+            seg = np.zeros(0, obs["segmentation"].dtype)
+            empty = np.zeros((0, 3)), seg, np.zeros((0, 3)), np.zeros(0, np.uint8)
+            return (*empty, np.zeros((0, 2), np.int64))
         # open3d emits the points in an order that varies between calls (parallel chunks);
         # fusion keeps the last label written to a voxel, so fix the order: row-major pixels.
-        points, pixels, seg, labels = kernels.ordered_points(
+        return kernels.ordered_points(
             cloud.point.colors.numpy(), cloud.point.positions.numpy(),
             np.asarray(obs["segmentation"]), label, w, h,
         )  # fmt: skip
-        return points, labels, pixels, seg
 
     def _colour_buffer(self, h: int, w: int) -> np.ndarray:
         """(h, w, 3) float32 holding every pixel's row and column in channels 1 and 2, made
