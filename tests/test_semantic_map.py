@@ -362,3 +362,19 @@ def test_frontier_targets_are_free_planner_cells_near_their_frontiers(surveys):
             assert min(math.dist((x, y), f.centroid) for f in frontiers) <= 1.0
             checked += 1
     assert checked >= 10
+
+
+def test_the_pooled_crop_is_the_maximum_of_its_samples():
+    """The crop's kernel against the numpy reading it replaced: every crop cell the maximum
+    of its samples, off-map samples 0, at any pose (near edges, turned)."""
+    from maniskill_tidy.perception.crops import _egocentric_samples, egocentric_crop
+    from maniskill_tidy.perception.map_grid import MapFrame
+
+    rng = np.random.default_rng(3)
+    frame = MapFrame((-1.0, 2.0), (60, 80), 0.05)
+    top_down = (rng.random((60, 80, 7)) < 0.05).astype(np.uint8)
+    for pose in [(0.0, 3.0, 0), (2.9, 4.9, 30), (-0.9, 2.1, 270), (1.3, 3.3, 135)]:
+        crop = egocentric_crop(top_down, frame, pose)
+        ref = _egocentric_samples(top_down, frame, pose, 20, 0.25, 5).max(axis=(1, 3))
+        assert crop.dtype == np.uint8 and np.array_equal(crop, ref)
+        assert 0 < crop.sum() < top_down.sum()
