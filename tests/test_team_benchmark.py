@@ -36,6 +36,15 @@ def test_a_replay_that_diverges_is_noticed():
 def test_the_report_names_each_team(policy):
     from maniskill_tidy.eval.team_benchmark import report
 
-    text = report([bench_team(policy, episodes=1)], [{"team": policy, "episodes": 1,
-                                                     "two_over_one": 1.5}])  # fmt: skip
-    assert policy in text and "1.50" in text
+    workers = {"team": policy, "episodes": 1, "two_over_one": 1.5, "cores_one": 1.37,
+               "cores_two": 1.91}  # fmt: skip
+    text = report([bench_team(policy, episodes=1)], [workers])
+    assert policy in text and "1.50" in text and "1.37" in text and "1.91" in text
+
+
+def test_cpu_seconds_counts_work_done():
+    from maniskill_tidy.eval.team_benchmark import cpu_seconds
+
+    start = cpu_seconds()
+    sum(i * i for i in range(2_000_000))
+    assert cpu_seconds() - start > 0.01

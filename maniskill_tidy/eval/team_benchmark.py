@@ -6,11 +6,13 @@ with the same seed and the team's observation mode (the same renders, no percept
 decision or messages). The ratio is the team's cost in units of the env's. The replay must end
 as the episode did (same success and objects placed), or the figure is refused.
 
-Then the 2-worker / 1-worker ratio of ``eval`` for each team: what a second process buys.
+Then the 2-worker / 1-worker ratio of ``eval`` for each team: what a second process buys, and
+the cores each run kept busy.
 """
 
 from __future__ import annotations
 
+import resource
 import tempfile
 import time
 from pathlib import Path
@@ -79,16 +81,30 @@ def bench_team(policy: str, episodes: int = 3, dataset: str | None = None,
     }
 
 
+def cpu_seconds() -> float:
+    """CPU time of this process and its finished child processes (user + system)."""
+    own, children = (
+        resource.getrusage(resource.RUSAGE_SELF),
+        resource.getrusage(resource.RUSAGE_CHILDREN),
+    )
+    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
+
+
 def bench_workers(policy: str, episodes: int = 4, dataset: str | None = None) -> dict:
-    """Episodes per hour of ``eval`` with 2 local processes over 1, on the same episodes."""
+    """Episodes per hour of ``eval`` with 2 local processes over 1, on the same episodes, and
+    the cores one process keeps busy (CPU seconds / wall seconds): lavapipe and the agents run
+    on threads, so one process already uses more than one core and 2 / that is the most a
+    second process can add on a 2-core machine."""
     cfg = RunConfig(policy, "I", "test", dataset, episodes)
-    rate = {}
+    rate, busy = {}, {}
     for workers in (1, 2):
         with tempfile.TemporaryDirectory(prefix="bench-teams-") as out:
-            start = time.perf_counter()
+            start, cpu = time.perf_counter(), cpu_seconds()
             summary = evaluate(cfg, Path(out), workers, progress=False)
-            rate[workers] = summary["episodes"] / (time.perf_counter() - start)
-    return {"team": policy, "episodes": episodes, "two_over_one": rate[2] / rate[1]}
+            wall = time.perf_counter() - start
+            rate[workers], busy[workers] = summary["episodes"] / wall, (cpu_seconds() - cpu) / wall
+    return {"team": policy, "episodes": episodes, "two_over_one": rate[2] / rate[1],
+            "cores_one": busy[1], "cores_two": busy[2]}  # fmt: skip
 
 
 def report(rows: list[dict], workers: list[dict], demos: list[dict] = ()) -> str:
@@ -101,9 +117,10 @@ def report(rows: list[dict], workers: list[dict], demos: list[dict] = ()) -> str
             f"{r['team']:>20} {r['env_id']:>13} {r['episodes']:>8} {r['team_s']:>9.2f} "
             f"{r['env_s']:>8.2f} {r['ratio']:>6.2f}"
         )
-    lines.append(f"{'team':>20} {'episodes':>8} {'2 workers / 1':>14}")
+    lines.append(f"{'team':>20} {'episodes':>8} {'2 workers / 1':>14} {'cores busy 1 / 2':>17}")
     for w in workers:
-        lines.append(f"{w['team']:>20} {w['episodes']:>8} {w['two_over_one']:>14.2f}")
+        lines.append(f"{w['team']:>20} {w['episodes']:>8} {w['two_over_one']:>14.2f} "
+                     f"{w['cores_one']:>8.2f} {w['cores_two']:>8.2f}")  # fmt: skip
     if demos:
         lines.append(f"{'demos --features':>20} {'env':>13} {'traj.':>8} {'s/traj.':>9} "
                      f"{'demos hash':>12}")  # fmt: skip
