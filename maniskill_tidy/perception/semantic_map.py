@@ -32,8 +32,9 @@ and the object the agent holds are left out of the map.
 The map frame is the house's navigation grid, subdivided: with 0.05 m cells five map cells
 make one 0.25 m planner cell, so :meth:`SemanticMap.planner_grid` is an exact max-pool.
 
-This module fuses frames; the grid and labels are ``map_grid.py``, what decisions read of a map
-``crops.py``, frontiers ``frontiers.py``, the ground truth ``map_truth.py``, a team's maps
+This module fuses frames; its per-point loops are numba kernels (``map_kernels.py``: numpy's
+arithmetic, byte for byte); the grid and labels are ``map_grid.py``, what decisions read of a
+map ``crops.py``, frontiers ``frontiers.py``, the ground truth ``map_truth.py``, a team's maps
 ``map_sharing.py``.
 """
 
