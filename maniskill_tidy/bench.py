@@ -78,7 +78,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--only",
         choices=(
-            "generation", "env", "looks", "map", "map-accuracy", "eval", "throughput", "teams",
+            "generation",
+            "env",
+            "looks",
+            "map",
+            "map-accuracy",
+            "eval",
+            "throughput",
+            "teams",
         ),  # fmt: skip
         default=None,
     )

@@ -155,6 +155,7 @@ def test_model_shapes(houses):
         if knowledge:
             assert torch.allclose(r.attention.sum(1), torch.ones(b))
 
+
 def test_frozen_model_reuses_sq_until_a_weight_changes(houses):
     model = new_model(houses, True).eval()
     with torch.no_grad():
@@ -167,7 +168,6 @@ def test_frozen_model_reuses_sq_until_a_weight_changes(houses):
         assert again is not first and torch.equal(again, model.gcn())
     model.train()
     assert model.knowledge_nodes().requires_grad  # training: recomputed, with gradients
-
 
 
 def _train_quick(houses, views, tmp: Path, knowledge=True, epochs=None, seed=0):

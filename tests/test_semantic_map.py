@@ -378,3 +378,23 @@ def test_the_pooled_crop_is_the_maximum_of_its_samples():
         ref = _egocentric_samples(top_down, frame, pose, 20, 0.25, 5).max(axis=(1, 3))
         assert crop.dtype == np.uint8 and np.array_equal(crop, ref)
         assert 0 < crop.sum() < top_down.sum()
+
+
+def test_the_wide_layout_is_the_share_of_its_samples():
+    """The wide layout's kernel against the numpy reading it replaced (the float32 mean of
+    16 samples, times 255, rounded half to even), off-map samples 0."""
+    from maniskill_tidy.perception.crops import _egocentric_samples, wide_layout
+    from maniskill_tidy.perception.map_grid import EXPLORED, FIRST_CHANNEL, OBSTACLE, MapFrame
+
+    rng = np.random.default_rng(4)
+    frame = MapFrame((-1.0, 2.0), (300, 260), 0.05)
+    top_down = (rng.random((300, 260, 9)) < 0.3).astype(np.uint8)
+    for pose in [(4.0, 9.0, 0), (0.2, 2.4, 60), (11.0, 16.0, 180)]:
+        s = _egocentric_samples(top_down, frame, pose, 20, 1.0, 4)
+        shares = np.stack(
+            [s[..., OBSTACLE], s[..., EXPLORED], s[..., FIRST_CHANNEL:].any(-1)], axis=-1
+        ).astype(np.float32)
+        ref = np.round(shares.mean(axis=(1, 3)) * 255).astype(np.uint8)
+        layout = wide_layout(top_down, frame, pose)
+        assert layout.dtype == np.uint8 and np.array_equal(layout, ref)
+        assert 128 in layout  # 8 of 16: the tie rounds to even

@@ -355,7 +355,6 @@ def compare_with_trace(
     import gymnasium as gym
     from tqdm import tqdm
 
-
     if not (trace / TRACE_META).is_file():
         raise ValueError(f"--against {trace}: no {TRACE_META} there (expected a check-render "
                          "--save folder)")  # fmt: skip

@@ -342,6 +342,4 @@ class TeamDecision(nn.Module):
     def _communicate(self, sf, x, present, hard, labels):
         """``inn``, ``int`` (B, T, N, ·) and the info ``forward`` returns."""
         comms = [agent.comm for agent in self.agents]
-        return self.scheme.communicate(
-            self.cfg, comms, sf, x, present, hard, labels, self.central
-        )
+        return self.scheme.communicate(self.cfg, comms, sf, x, present, hard, labels, self.central)

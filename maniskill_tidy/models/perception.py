@@ -91,7 +91,8 @@ class PerceptionModel(nn.Module):
         every step of every agent)."""
         if self.training or torch.is_grad_enabled():
             return self.gcn()
-        key = tuple((t.data_ptr(), t._version) for t in self.gcn.state_dict().values())
+        tensors = [*self.gcn.parameters(), *self.gcn.buffers()]  # no state_dict: it is per step
+        key = tuple((t.data_ptr(), t._version) for t in tensors)
         if getattr(self, "_sq", (None,))[0] != key:
             self._sq = (key, self.gcn())
         return self._sq[1]

@@ -8,7 +8,7 @@ import math
 import numpy as np
 
 from maniskill_tidy.perception.map_grid import EXPLORED, FIRST_CHANNEL, OBSTACLE, MapFrame
-from maniskill_tidy.perception.map_kernels import pooled_samples
+from maniskill_tidy.perception.map_kernels import pooled_samples, sample_shares
 
 
 def pool_to_planner(top_down: np.ndarray, planner_shape: tuple[int, int]) -> np.ndarray:
@@ -59,11 +59,8 @@ def wide_layout(
     The 5 m crop rarely holds the frontier an exploring teacher heads for; this coarse view of
     the agent's own map does, and shares keep a half-explored cell apart from an explored one.
     """
-    s = _egocentric_samples(top_down, frame, pose, size, cell, samples)
-    layout = np.stack(
-        [s[..., OBSTACLE], s[..., EXPLORED], s[..., FIRST_CHANNEL:].any(-1)], axis=-1
-    ).astype(np.float32)
-    return np.round(layout.mean(axis=(1, 3)) * 255).astype(np.uint8)
+    rows, cols = _egocentric_cells(frame, pose, size, cell, samples)
+    return sample_shares(top_down, rows, cols, size, samples, OBSTACLE, EXPLORED, FIRST_CHANNEL)
 
 
 def _egocentric_samples(

@@ -237,3 +237,35 @@ def pooled_samples(top_down, rows, cols, size, sub):
                     for k in range(channels):
                         o[k] = max(o[k], t[k])
     return out
+
+
+@_jit
+def sample_shares(top_down, rows, cols, size, sub, obstacle, explored, first_channel):
+    """(size, size, 3) uint8: per cell the share (0-255) of its sub x sub samples (map cells
+    (rows, cols) in (size, sub, size, sub) order; off the map reads 0) holding an obstacle,
+    explored, any object. numpy took the float32 mean, times 255, rounded half to even."""
+    n_rows, n_cols, channels = top_down.shape
+    counts = np.zeros((size, size, 3), np.int64)
+    i = 0
+    for a in range(size):
+        for _ in range(sub):
+            for b in range(size):
+                for _ in range(sub):
+                    r, c = rows[i], cols[i]
+                    i += 1
+                    if r < 0 or r >= n_rows or c < 0 or c >= n_cols:
+                        continue
+                    t = top_down[r, c]
+                    counts[a, b, 0] += t[obstacle] != 0
+                    counts[a, b, 1] += t[explored] != 0
+                    for k in range(first_channel, channels):
+                        if t[k] != 0:
+                            counts[a, b, 2] += 1
+                            break
+    out = np.empty((size, size, 3), np.uint8)
+    n = np.float32(sub * sub)
+    for a in range(size):
+        for b in range(size):
+            for k in range(3):
+                out[a, b, k] = np.uint8(np.round(np.float32(counts[a, b, k]) / n * np.float32(255)))
+    return out

@@ -324,7 +324,7 @@ def build_demo_features(
         del want["student"]
     if cfg.env == "HeteroTidy-v1":  # and those made before v2 existed
         del want["env"]
-    check_same_config(directory / "manifest.json", want, defaults={"env": "HeteroTidy-v1"})
+    check_same_config(directory / "manifest.json", want)
     directory.mkdir(parents=True, exist_ok=True)
     jobs = [
         (h, idx, str(directory / f"{h}.npz"))

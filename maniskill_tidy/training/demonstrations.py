@@ -137,7 +137,7 @@ def write_demonstrations(
     look = {"env": env_id} if env_id != "HeteroTidy-v1" else {}  # v1 folders predate the field
     want = {"setting": setting, "split": split, "dataset_hash": u.episodes.dataset_hash,
             "seed": seed, **look}  # fmt: skip
-    check_same_config(directory / "manifest.json", want, defaults={"env": "HeteroTidy-v1"})
+    check_same_config(directory / "manifest.json", want)
     directory.mkdir(parents=True, exist_ok=True)
     team = ExpertTeam()
     total = sum(len(v) for v in by_house.values())

@@ -22,7 +22,6 @@ def worker_env(dataset: str | None, setting: str, split: str, env_id: str = "Het
     look (HeteroTidy-v1 or -v2)."""
     import gymnasium as gym
 
-
     return gym.make(
         env_id,
         setting=setting,
@@ -79,13 +78,17 @@ def shards_digest(directory: Path, pattern: str) -> str:
     return digest.hexdigest()
 
 
-def check_same_config(manifest: Path, want: dict, defaults: dict | None = None) -> None:
-    """Refuse to mix shards made with two configurations in one folder. ``defaults``: the
-    value a key had before manifests recorded it (the look: HeteroTidy-v1)."""
+# What a key was before manifests recorded it: folders made before v2 existed are v1's, and
+# v1 folders leave the key out still, so that their manifests read as before.
+UNRECORDED = {"env": "HeteroTidy-v1"}
+
+
+def check_same_config(manifest: Path, want: dict) -> None:
+    """Refuse to mix shards made with two configurations in one folder."""
     if not manifest.is_file():
         return
     old = json.loads(manifest.read_text())
-    defaults = defaults or {}
+    defaults = UNRECORDED
     keys = [*want, *(k for k in defaults if k not in want)]
     differ = [k for k in keys if old.get(k, defaults.get(k)) != want.get(k, defaults.get(k))]
     if differ:

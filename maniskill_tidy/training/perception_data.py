@@ -265,7 +265,7 @@ def build_views(
         want["houses"] = len(by_house)
     if cfg.env != "HeteroTidy-v1":  # v1 views from before the field existed stay valid
         want["env"] = cfg.env
-    check_same_config(directory / "manifest.json", want, defaults={"env": "HeteroTidy-v1"})
+    check_same_config(directory / "manifest.json", want)
     directory.mkdir(parents=True, exist_ok=True)
     jobs = [
         (h, idx, str(directory / f"{h}.npz"))
