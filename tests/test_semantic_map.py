@@ -364,10 +364,22 @@ def test_frontier_targets_are_free_planner_cells_near_their_frontiers(surveys):
     assert checked >= 10
 
 
+def _egocentric_samples(top_down, frame, pose, size, cell, sub):
+    """The numpy reading the crop kernels replaced: (size, sub, size, sub, channels) samples
+    of the map (0 off the map)."""
+    from maniskill_tidy.perception.crops import _egocentric_cells
+
+    rows, cols = _egocentric_cells(frame, pose, size, cell, sub)
+    inside = (rows >= 0) & (rows < top_down.shape[0]) & (cols >= 0) & (cols < top_down.shape[1])
+    samples = np.zeros((len(rows), top_down.shape[2]), dtype=top_down.dtype)
+    samples[inside] = top_down[rows[inside], cols[inside]]
+    return samples.reshape(size, sub, size, sub, -1)
+
+
 def test_the_pooled_crop_is_the_maximum_of_its_samples():
     """The crop's kernel against the numpy reading it replaced: every crop cell the maximum
     of its samples, off-map samples 0, at any pose (near edges, turned)."""
-    from maniskill_tidy.perception.crops import _egocentric_samples, egocentric_crop
+    from maniskill_tidy.perception.crops import egocentric_crop
     from maniskill_tidy.perception.map_grid import MapFrame
 
     rng = np.random.default_rng(3)
@@ -383,7 +395,7 @@ def test_the_pooled_crop_is_the_maximum_of_its_samples():
 def test_the_wide_layout_is_the_share_of_its_samples():
     """The wide layout's kernel against the numpy reading it replaced (the float32 mean of
     16 samples, times 255, rounded half to even), off-map samples 0."""
-    from maniskill_tidy.perception.crops import _egocentric_samples, wide_layout
+    from maniskill_tidy.perception.crops import wide_layout
     from maniskill_tidy.perception.map_grid import EXPLORED, FIRST_CHANNEL, OBSTACLE, MapFrame
 
     rng = np.random.default_rng(4)

@@ -63,18 +63,6 @@ def wide_layout(
     return sample_shares(top_down, rows, cols, size, samples, OBSTACLE, EXPLORED, FIRST_CHANNEL)
 
 
-def _egocentric_samples(
-    top_down: np.ndarray, frame: MapFrame, pose, size: int, cell: float, sub: int
-) -> np.ndarray:
-    """(size, sub, size, sub, channels): the map read at ``sub`` x ``sub`` points per crop
-    cell of an egocentric grid (0 outside the map)."""
-    rows, cols = _egocentric_cells(frame, pose, size, cell, sub)
-    inside = (rows >= 0) & (rows < top_down.shape[0]) & (cols >= 0) & (cols < top_down.shape[1])
-    samples = np.zeros((len(rows), top_down.shape[2]), dtype=top_down.dtype)
-    samples[inside] = top_down[rows[inside], cols[inside]]
-    return samples.reshape(size, sub, size, sub, -1)
-
-
 def _egocentric_cells(frame: MapFrame, pose, size: int, cell: float, sub: int):
     """Map rows and columns (may lie off the map) of the ``sub`` x ``sub`` sample points per
     crop cell, in (size, sub, size, sub) order."""

@@ -219,49 +219,48 @@ def mark_floor_seen(cam, rows, cols, depth, k, ext, camera_z, reach, floor_hit, 
 
 
 @_jit
+def _crop_cell(i, size, sub):
+    """The crop cell (a, b) of sample i of an egocentric grid sampled in (size, sub, size, sub)
+    order (``crops._egocentric_cells``)."""
+    return i // (sub * size * sub), (i // sub) % size
+
+
+@_jit
 def pooled_samples(top_down, rows, cols, size, sub):
     """(size, size, channels): per crop cell the maximum over its sub x sub samples, read at
-    map cells (rows, cols) in (size, sub, size, sub) order; samples off the map read 0."""
+    map cells (rows, cols); samples off the map read 0."""
     n_rows, n_cols, channels = top_down.shape
     out = np.zeros((size, size, channels), top_down.dtype)
-    i = 0
-    for a in range(size):
-        for _ in range(sub):
-            for b in range(size):
-                for _ in range(sub):
-                    r, c = rows[i], cols[i]
-                    i += 1
-                    if r < 0 or r >= n_rows or c < 0 or c >= n_cols:
-                        continue
-                    o, t = out[a, b], top_down[r, c]
-                    for k in range(channels):
-                        o[k] = max(o[k], t[k])
+    for i in range(len(rows)):
+        r, c = rows[i], cols[i]
+        if r < 0 or r >= n_rows or c < 0 or c >= n_cols:
+            continue
+        a, b = _crop_cell(i, size, sub)
+        o, t = out[a, b], top_down[r, c]
+        for k in range(channels):
+            o[k] = max(o[k], t[k])
     return out
 
 
 @_jit
 def sample_shares(top_down, rows, cols, size, sub, obstacle, explored, first_channel):
     """(size, size, 3) uint8: per cell the share (0-255) of its sub x sub samples (map cells
-    (rows, cols) in (size, sub, size, sub) order; off the map reads 0) holding an obstacle,
-    explored, any object. numpy took the float32 mean, times 255, rounded half to even."""
+    (rows, cols); off the map reads 0) holding an obstacle, explored, any object. numpy took
+    the float32 mean, times 255, rounded half to even."""
     n_rows, n_cols, channels = top_down.shape
     counts = np.zeros((size, size, 3), np.int64)
-    i = 0
-    for a in range(size):
-        for _ in range(sub):
-            for b in range(size):
-                for _ in range(sub):
-                    r, c = rows[i], cols[i]
-                    i += 1
-                    if r < 0 or r >= n_rows or c < 0 or c >= n_cols:
-                        continue
-                    t = top_down[r, c]
-                    counts[a, b, 0] += t[obstacle] != 0
-                    counts[a, b, 1] += t[explored] != 0
-                    for k in range(first_channel, channels):
-                        if t[k] != 0:
-                            counts[a, b, 2] += 1
-                            break
+    for i in range(len(rows)):
+        r, c = rows[i], cols[i]
+        if r < 0 or r >= n_rows or c < 0 or c >= n_cols:
+            continue
+        a, b = _crop_cell(i, size, sub)
+        t = top_down[r, c]
+        counts[a, b, 0] += t[obstacle] != 0
+        counts[a, b, 1] += t[explored] != 0
+        for k in range(first_channel, channels):
+            if t[k] != 0:
+                counts[a, b, 2] += 1
+                break
     out = np.empty((size, size, 3), np.uint8)
     n = np.float32(sub * sub)
     for a in range(size):
