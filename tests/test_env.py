@@ -11,6 +11,7 @@ import pytest
 
 import maniskill_tidy
 from maniskill_tidy.envs.actions import MIN_PIXELS, REACH, Action, Targeted
+from maniskill_tidy.envs.episodes import EpisodeSet
 from maniskill_tidy.envs.hetero_tidy import HeteroTidyEnv
 from maniskill_tidy.knowledge import FLOOR, load_placement
 from maniskill_tidy.policies.viewpoints import viewpoints
@@ -395,8 +396,14 @@ def test_preset_files_match_the_builtin_settings_and_custom_teams_run():
         obs, _ = e.reset(seed=0)
         heights = [np.linalg.inv(obs[n]["extrinsics"])[2, 3] for n in e.agent_names]
         assert heights == pytest.approx([1.0, 0.25], abs=1e-3)
+        # commands list the episodes an env would play without building its scene
+        listed = EpisodeSet.for_setting(None, "test", str(root / "two_manipulators.json"))
+        assert [ep.id for ep in listed.episodes] == [ep.id for ep in e.episodes.episodes]
+        assert [ep.starts for ep in listed.episodes] == [ep.starts for ep in e.episodes.episodes]
     finally:
         e.close()
+    ii = EpisodeSet.for_setting(None, "test", "II")
+    assert ii.setting == "II" and len(ii.episodes[0].starts) == len(SETTINGS["II"])
     with pytest.raises(ValueError, match="not a team preset"):
         load_preset(root / "README.md")
 

@@ -15,7 +15,7 @@ from pathlib import Path
 from maniskill_tidy.houses.schema import House
 from maniskill_tidy.tasks.dataset import load_dataset
 from maniskill_tidy.tasks.metatask import MetaTask
-from maniskill_tidy.tasks.teams import SETTINGS, Capability
+from maniskill_tidy.tasks.teams import SETTINGS, Capability, setting_team
 
 TASK_TYPES = ("all", "single", "cross")
 
@@ -86,6 +86,14 @@ class EpisodeSet:
         if not self.episodes:
             raise ValueError(f"dataset {self.root} split {split!r} has no {task_type} tasks")
         self._index = {e.id: i for i, e in enumerate(self.episodes)}
+
+    @classmethod
+    def for_setting(
+        cls, dataset: str | Path | None, split: str, setting: str | list, task_type: str = "all"
+    ) -> EpisodeSet:
+        """The episodes ``gym.make(ENV_ID, setting=setting, ...)`` plays, without building its
+        scene (seconds of SAPIEN set-up a command needs only to list them)."""
+        return cls(dataset, split, task_type, *setting_team(setting))
 
     def __len__(self) -> int:
         return len(self.episodes)

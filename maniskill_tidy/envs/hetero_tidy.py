@@ -60,8 +60,7 @@ from maniskill_tidy.knowledge import FLOOR, load_placement
 from maniskill_tidy.sim.house_scene import HouseScene, Instance
 from maniskill_tidy.sim.visibility import camera_arc
 from maniskill_tidy.tasks.metatask import apply_task
-from maniskill_tidy.tasks.teams import load_preset
-from maniskill_tidy.tasks.teams import team as parse_team
+from maniskill_tidy.tasks.teams import setting_team
 
 QUALITIES = ("fast", "high")
 LOOKS = ("flat", "realistic")  # HeteroTidy-v1, HeteroTidy-v2
@@ -116,11 +115,7 @@ class HeteroTidyEnv(BaseEnv):
             raise ValueError(f"visuals {visuals!r} is not one of {LOOKS}")
         if kwargs.get("num_envs", 1) != 1:
             raise ValueError("HeteroTidy-v1 simulates one house per env: num_envs must be 1")
-        if isinstance(setting, str) and setting.endswith(".json"):
-            setting, self.team = load_preset(setting)
-        else:
-            self.team = parse_team(setting)
-        self.setting = setting if isinstance(setting, str) else None
+        self.setting, self.team = setting_team(setting)
         self.agent_names = [f"agent_{i}" for i in range(len(self.team))]
         self.kinds = [robot_kind(c) for c in self.team]
         self.episodes = EpisodeSet(dataset, split, task_type, self.setting, self.team)

@@ -12,6 +12,7 @@ the cores each run kept busy.
 
 from __future__ import annotations
 
+import json
 import resource
 import tempfile
 import time
@@ -90,21 +91,27 @@ def cpu_seconds() -> float:
     return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
 
 
-def bench_workers(policy: str, episodes: int = 4, dataset: str | None = None) -> dict:
-    """Episodes per hour of ``eval`` with 2 local processes over 1, on the same episodes, and
-    the cores one process keeps busy (CPU seconds / wall seconds): lavapipe and the agents run
-    on threads, so one process already uses more than one core and 2 / that is the most a
-    second process can add on a 2-core machine."""
+def bench_workers(policy: str, episodes: int = 6, dataset: str | None = None) -> dict:
+    """``eval`` with 2 local processes over 1, on the same episodes: the ratio of episodes per
+    hour over the whole command (``two_over_one``: start-up included, which a short run
+    cannot amortise), in steady state (``steady``: from the episodes' own seconds, 2 x the
+    1-worker sum over the 2-worker sum; slightly high where one worker's last episode runs
+    alone), and the cores one process keeps busy (CPU seconds / wall seconds): lavapipe and
+    the agents run on threads, so one process already uses more than one core and 2 / that
+    is the most a second process can add on a 2-core machine."""
     cfg = RunConfig(policy, "I", "test", dataset, episodes)
-    rate, busy = {}, {}
+    rate, busy, played = {}, {}, {}
     for workers in (1, 2):
         with tempfile.TemporaryDirectory(prefix="bench-teams-") as out:
             start, cpu = time.perf_counter(), cpu_seconds()
             summary = evaluate(cfg, Path(out), workers, progress=False)
             wall = time.perf_counter() - start
             rate[workers], busy[workers] = summary["episodes"] / wall, (cpu_seconds() - cpu) / wall
+            lines = next(Path(out).rglob("episodes.jsonl")).read_text().splitlines()
+            played[workers] = sum(json.loads(line)["seconds"] for line in lines)
     return {"team": policy, "episodes": episodes, "two_over_one": rate[2] / rate[1],
-            "cores_one": busy[1], "cores_two": busy[2]}  # fmt: skip
+            "steady": 2 * played[1] / played[2], "cores_one": busy[1],
+            "cores_two": busy[2]}  # fmt: skip
 
 
 def report(rows: list[dict], workers: list[dict], demos: list[dict] = ()) -> str:
@@ -117,14 +124,18 @@ def report(rows: list[dict], workers: list[dict], demos: list[dict] = ()) -> str
             f"{r['team']:>20} {r['env_id']:>13} {r['episodes']:>8} {r['team_s']:>9.2f} "
             f"{r['env_s']:>8.2f} {r['ratio']:>6.2f}"
         )
-    lines.append(f"{'team':>20} {'episodes':>8} {'2 workers / 1':>14} {'cores busy 1 / 2':>17}")
+    lines.append(f"{'team':>20} {'episodes':>8} {'2 workers / 1':>14} {'steady':>7} "
+                 f"{'cores busy 1 / 2':>17}")  # fmt: skip
     for w in workers:
-        lines.append(f"{w['team']:>20} {w['episodes']:>8} {w['two_over_one']:>14.2f} "
-                     f"{w['cores_one']:>8.2f} {w['cores_two']:>8.2f}")  # fmt: skip
+        lines.append(
+            f"{w['team']:>20} {w['episodes']:>8} {w['two_over_one']:>14.2f} "
+            f"{w['steady']:>7.2f} {w['cores_one']:>8.2f} {w['cores_two']:>8.2f}"
+        )
     if demos:
         lines.append(f"{'demos --features':>20} {'env':>13} {'traj.':>8} {'s/traj.':>9} "
-                     f"{'demos hash':>12}")  # fmt: skip
+                     f"{'steady':>7} {'demos hash':>12}")  # fmt: skip
         for d in demos:
             lines.append(f"{'':>20} {d['env_id']:>13} {d['trajectories']:>8} "
-                         f"{d['seconds']:>9.2f} {d['demos_hash'][:12]:>12}")  # fmt: skip
+                         f"{d['seconds']:>9.2f} {d['steady_s']:>7.2f} "
+                         f"{d['demos_hash'][:12]:>12}")  # fmt: skip
     return "\n".join(lines)

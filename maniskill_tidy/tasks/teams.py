@@ -66,3 +66,11 @@ def team(setting: str | list | tuple) -> tuple[Capability, ...]:
     if not members:
         raise ValueError("a team needs at least one agent")
     return members  # type: ignore[return-value]
+
+
+def setting_team(setting: str | list) -> tuple[str | None, tuple[Capability, ...]]:
+    """What an env's ``setting`` argument names: a setting ("I"), a preset file or a list of
+    capabilities, as (the setting's name or None, the team)."""
+    if isinstance(setting, str) and setting.endswith(".json"):
+        return load_preset(setting)
+    return (setting if isinstance(setting, str) else None), team(setting)

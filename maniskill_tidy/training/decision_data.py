@@ -54,6 +54,7 @@ from tqdm import tqdm
 from maniskill_tidy.common.files import write_atomic
 from maniskill_tidy.common.parallel import agent_pool
 from maniskill_tidy.envs.actions import Action, Targeted
+from maniskill_tidy.envs.episodes import EpisodeSet
 from maniskill_tidy.knowledge import ROOM_TYPES, load_catalog
 from maniskill_tidy.perception.crops import WIDE_SIZE
 from maniskill_tidy.perception.frame_inputs import DETECTION_NUMERIC, IMAGE, FrameReader
@@ -294,8 +295,6 @@ def build_demo_features(
     ray: str | None = None,
 ) -> dict:
     """Write ``out/setting_S/SPLIT/house_*.npz`` (resumable per house); return the manifest."""
-    import gymnasium as gym
-
     from maniskill_tidy.common.provenance import code_version
     from maniskill_tidy.policies import POLICIES
 
@@ -311,13 +310,9 @@ def build_demo_features(
         why = getattr(student, "missing_model", lambda team: None)(parse_team(env_setting(cfg)))
         if why:
             raise ValueError(f"student {cfg.student!r}: {why}")
-    probe = gym.make(
-        cfg.env, setting=env_setting(cfg), dataset=dataset, split=cfg.split, obs_mode="none",
-    )  # fmt: skip
-    episodes = probe.unwrapped.episodes
+    episodes = EpisodeSet.for_setting(dataset, cfg.split, env_setting(cfg))
     dataset_hash = episodes.dataset_hash
     by_house = select_episodes(episodes.episodes, cfg)
-    probe.close()
     directory = Path(out) / f"setting_{cfg.setting}" / cfg.split
     want = {"format_version": FORMAT_VERSION, "dataset_hash": dataset_hash, **asdict(cfg)}
     if cfg.student is None:  # folders made before DAgger existed stay valid

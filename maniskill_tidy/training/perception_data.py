@@ -39,6 +39,7 @@ from tqdm import tqdm
 
 from maniskill_tidy.common.files import write_atomic
 from maniskill_tidy.common.parallel import agent_pool
+from maniskill_tidy.envs.episodes import EpisodeSet
 from maniskill_tidy.houses.schema import House
 from maniskill_tidy.knowledge import ROOM_TYPES, load_catalog, load_placement
 from maniskill_tidy.perception.frame_inputs import DETECTION_NUMERIC, IMAGE, FrameReader
@@ -239,12 +240,9 @@ def build_views(
     ray: str | None = None,
 ) -> dict:
     """Write ``out/SPLIT/house_*.npz`` (resumable per house) and return the manifest."""
-    import gymnasium as gym
-
     from maniskill_tidy.common.provenance import code_version
 
-    probe = gym.make(cfg.env, dataset=dataset, split=cfg.split, obs_mode="none")
-    episodes = probe.unwrapped.episodes
+    episodes = EpisodeSet.for_setting(dataset, cfg.split, "I")  # the env's default setting
     dataset_hash = episodes.dataset_hash
     by_house: dict[str, list[int]] = {}
     tasks: dict[str, list[str]] = {}
@@ -255,7 +253,6 @@ def build_views(
         if e.task.id not in seen and len(seen) < cfg.tasks_per_house:
             seen.append(e.task.id)
             by_house.setdefault(e.house_id, []).append(i)
-    probe.close()
     if cfg.houses is not None:
         by_house = dict(sorted(by_house.items())[: cfg.houses])
     directory = Path(out) / cfg.split
