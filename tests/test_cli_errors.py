@@ -265,3 +265,10 @@ def test_workers_below_one_are_refused(tmp_path, command):
     p = cli(*command, "--workers", "0", "--out", str(out))
     one_line_error(p, "--workers 0", "at least 1")
     assert not out.exists()
+
+
+def test_eval_workers_take_a_number_or_auto(tmp_path):
+    out = tmp_path / "out"
+    p = cli("eval", "--policy", "random", "--workers", "many", "--out", str(out))
+    one_line_error(p, "--workers 'many'", "a number of processes or auto")
+    assert not out.exists()

@@ -158,6 +158,10 @@ def _eval(out, extra=()):
 def test_runner_resumes_after_a_kill_with_the_same_totals(tmp_path):
     full = subprocess.run(_eval(tmp_path / "full"), capture_output=True, text=True, timeout=600)
     assert full.returncode == 0, full.stderr
+    from maniskill_tidy.common.parallel import auto_workers
+
+    summary = json.loads((tmp_path / "full/eval/results/setting_I/expert/summary.json").read_text())
+    assert summary["workers"] == auto_workers(3)  # --workers auto, the default
     proc = subprocess.Popen(_eval(tmp_path / "cut"), stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     jsonl = tmp_path / "cut/eval/results/setting_I/expert/episodes.jsonl"
     deadline = time.time() + 300

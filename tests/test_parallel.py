@@ -73,3 +73,14 @@ def test_pool_workers_get_their_share_of_the_cores_and_the_parent_is_untouched(m
     # in this process (one worker) nothing is changed
     (_, env), *_ = run_jobs([0], thread_knobs, workers=1)
     assert env["LP_NUM_THREADS"] is None
+
+
+def test_auto_workers_is_a_process_per_core_but_never_more_than_the_jobs(monkeypatch):
+    from maniskill_tidy.common import parallel
+
+    monkeypatch.setattr(parallel, "worker_threads", lambda workers: 2)
+    assert [parallel.auto_workers(n) for n in (0, 1, 2, 200)] == [1, 1, 2, 2]
+    assert parallel.workers_option("auto") is None and parallel.workers_option("3") == 3
+    for bad, why in (("0", "at least 1"), ("many", "a number of processes or auto")):
+        with pytest.raises(ValueError, match=why):
+            parallel.workers_option(bad)

@@ -36,7 +36,7 @@ def main(argv: list[str] | None = None) -> int:
 
     args = build_parser().parse_args(argv)
     try:
-        if getattr(args, "workers", None) is not None and args.workers < 1:
+        if isinstance(getattr(args, "workers", None), int) and args.workers < 1:
             raise ValueError(f"--workers {args.workers}: expected at least 1 process")
         if getattr(args, "ray", None):  # before anything is written
             from maniskill_tidy.common.parallel import check_ray

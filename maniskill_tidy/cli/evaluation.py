@@ -10,6 +10,7 @@ from maniskill_tidy.cli.options import env_option, ray_option
 
 
 def _eval(args: argparse.Namespace) -> int:
+    from maniskill_tidy.common.parallel import workers_option
     from maniskill_tidy.eval.runner import RunConfig, episode_spec, evaluate, run_dir
 
     cfg = RunConfig(
@@ -25,7 +26,7 @@ def _eval(args: argparse.Namespace) -> int:
     summary = evaluate(
         cfg,
         Path(args.out),
-        workers=args.workers,
+        workers=workers_option(args.workers),
         record=args.record,
         images=args.images,
         ray=args.ray,
@@ -138,7 +139,12 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
         help="standard (first start of every meta-task, the default), all, or a number N "
         "(an evenly spread subset)",
     )
-    ev.add_argument("--workers", type=int, default=1)
+    ev.add_argument(
+        "--workers",
+        default="auto",
+        help="processes playing episodes: a number, or auto (the default: one per core, no "
+        "more than the episodes left)",
+    )
     ray_option(ev)
     ev.add_argument("--record", default="none", choices=("none", "failures", "all"))
     ev.add_argument("--dataset", help="dataset directory (default: the env's shipped dataset)")

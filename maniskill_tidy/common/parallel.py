@@ -68,6 +68,28 @@ def worker_threads(workers: int) -> int:
     return max(1, (cores or 1) // max(1, workers))
 
 
+def auto_workers(jobs: int) -> int:
+    """``--workers auto``: one process per core of this machine's share, no more than there
+    are jobs. One process keeps only about 1.4 cores busy (lavapipe and the agents wait on each
+    other), so on 2 cores a second process plays 1.7-1.9 times the episodes in steady state
+    (``bench --only teams``; docs/scaling.md)."""
+    return max(1, min(worker_threads(1), jobs))
+
+
+def workers_option(value: str | int) -> int | None:
+    """``--workers``: a number of processes (at least 1), or ``auto`` (None: see
+    :func:`auto_workers`); anything else is refused."""
+    if value == "auto":
+        return None
+    try:
+        n = int(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"--workers {value!r}: expected a number of processes or auto") from None
+    if n < 1:
+        raise ValueError(f"--workers {n}: expected at least 1 process")
+    return n
+
+
 _agent_pools: dict[int, Any] = {}
 
 

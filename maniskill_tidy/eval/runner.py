@@ -27,7 +27,7 @@ import numpy as np
 from tqdm import tqdm
 
 from maniskill_tidy.common.files import write_atomic
-from maniskill_tidy.common.parallel import run_jobs
+from maniskill_tidy.common.parallel import auto_workers, run_jobs
 from maniskill_tidy.common.provenance import code_version
 from maniskill_tidy.eval.episode import play_episode
 from maniskill_tidy.eval.metrics import EpisodeRecord, summarize
@@ -209,7 +209,7 @@ def exclusive(directory: Path):
 def evaluate(
     cfg: RunConfig,
     out: Path = Path("."),
-    workers: int = 1,
+    workers: int | None = 1,
     record: str = "none",
     progress: bool = True,
     images: bool = False,
@@ -218,7 +218,8 @@ def evaluate(
     """Run (or resume) an evaluation and write its summary; returns the summary.
 
     ``ray``: play the episodes on Ray actors ("local" or a cluster's address, see
-    :mod:`maniskill_tidy.common.parallel`) instead of ``workers`` local processes."""
+    :mod:`maniskill_tidy.common.parallel`) instead of ``workers`` local processes; ``workers``
+    None: one per core, no more than there are episodes to play."""
     team_cls = team_class(cfg.policy)  # a one-line error for an unknown policy
     if record not in RECORD_MODES:
         raise ValueError(f"--record must be one of {RECORD_MODES}, got {record!r}")
@@ -253,6 +254,8 @@ def evaluate(
         records = [r for r in read_records(jsonl) if r.episode in ids]
         done = {r.episode for r in records}
         todo = [i for i in chosen if episodes.get(i).id not in done]
+        if workers is None:
+            workers = auto_workers(len(todo))
         bar = tqdm(
             total=len(chosen),
             initial=len(done),
