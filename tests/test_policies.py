@@ -59,6 +59,26 @@ def test_parking_never_cuts_the_free_space():
         assert cell not in cut and cell in planner.graph
 
 
+def test_the_nearest_reachable_cell_is_the_minimum_over_the_whole_search():
+    """Searching outwards from the point gives what the whole breadth-first search from the
+    source did (the executor's rule: nearest to the point, then fewer moves, then the smaller
+    cell), with robots in the way, points off the grid and walls between."""
+    planner = GridPlanner(_house())
+    rng = np.random.default_rng(0)
+    cells = sorted(planner.graph)
+    rows, cols = max(r for r, _ in cells), max(c for _, c in cells)
+    for _ in range(300):
+        source = cells[rng.integers(len(cells))]
+        point = (int(source[0] + rng.integers(-6, 7)), int(source[1] + rng.integers(-6, 7)))
+        if rng.random() < 0.1:
+            point = (int(rng.integers(-3, rows + 3)), int(rng.integers(-3, cols + 3)))
+        near = [c for c in cells if abs(c[0] - source[0]) + abs(c[1] - source[1]) <= 3]
+        blocked = {near[i] for i in rng.integers(len(near), size=rng.integers(0, 8))}
+        reach = planner.distances(source, blocked)
+        want = min(reach, key=lambda c: (np.hypot(c[0] - point[0], c[1] - point[1]), reach[c], c))
+        assert planner.nearest_reachable(source, point, blocked) == want, (source, point, blocked)
+
+
 def test_camera_pitch_is_read_off_the_extrinsics():
     for pitch in (-30, 0, 30, 60):
         t = np.radians(pitch)

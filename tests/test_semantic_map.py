@@ -364,6 +364,35 @@ def test_frontier_targets_are_free_planner_cells_near_their_frontiers(surveys):
     assert checked >= 10
 
 
+def _numpy_egocentric_cells(frame, pose, size, cell, sub):
+    """The numpy reading ``egocentric_cells`` replaced: a meshgrid of sample points."""
+    x, y, rotation = (float(v) for v in pose)
+    yaw = math.radians(rotation)
+    fwd = np.array([math.cos(yaw), math.sin(yaw)])
+    right = np.array([math.sin(yaw), -math.cos(yaw)])
+    offsets = (np.arange(size * sub) + 0.5) / sub - size / 2
+    a, s = np.meshgrid(-offsets * cell, offsets * cell, indexing="ij")
+    world = np.stack([x + a * fwd[0] + s * right[0], y + a * fwd[1] + s * right[1]], axis=-1)
+    return frame.cells_of(world.reshape(-1, 2))
+
+
+def test_the_crop_kernel_samples_the_cells_numpy_did():
+    """Bit for bit: at poses whose sample points fall on cell borders (whole metres, a
+    0.05 m map) and at odd ones, turned every way."""
+    from maniskill_tidy.perception.crops import _egocentric_cells
+    from maniskill_tidy.perception.map_grid import MapFrame
+
+    rng = np.random.default_rng(5)
+    frame = MapFrame((-1.25, 2.0), (300, 260), 0.05)
+    poses = [(2.0, 5.0, r) for r in (0, 90, 180, 270)]
+    poses += [(*rng.uniform(-2, 14, 2), r) for r in rng.integers(0, 360, 20)]
+    for pose in poses:
+        for size, cell, sub in ((20, 0.25, 5), (20, 1.0, 4)):
+            got = _egocentric_cells(frame, pose, size, cell, sub)
+            want = _numpy_egocentric_cells(frame, pose, size, cell, sub)
+            assert all(np.array_equal(g, w) for g, w in zip(got, want, strict=True)), pose
+
+
 def _egocentric_samples(top_down, frame, pose, size, cell, sub):
     """The numpy reading the crop kernels replaced: (size, sub, size, sub, channels) samples
     of the map (0 off the map)."""

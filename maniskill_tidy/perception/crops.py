@@ -8,7 +8,7 @@ import math
 import numpy as np
 
 from maniskill_tidy.perception.map_grid import EXPLORED, FIRST_CHANNEL, OBSTACLE, MapFrame
-from maniskill_tidy.perception.map_kernels import pooled_samples, sample_shares
+from maniskill_tidy.perception.map_kernels import egocentric_cells, pooled_samples, sample_shares
 
 
 def pool_to_planner(top_down: np.ndarray, planner_shape: tuple[int, int]) -> np.ndarray:
@@ -73,6 +73,5 @@ def _egocentric_cells(frame: MapFrame, pose, size: int, cell: float, sub: int):
     offsets = (np.arange(size * sub) + 0.5) / sub - size / 2  # crop cells from the centre
     ahead = -offsets * cell  # row index grows away from "ahead"
     side = offsets * cell
-    a, s = np.meshgrid(ahead, side, indexing="ij")
-    world = np.stack([x + a * fwd[0] + s * right[0], y + a * fwd[1] + s * right[1]], axis=-1)
-    return frame.cells_of(world.reshape(-1, 2))
+    origin = np.asarray(frame.origin, dtype=np.float64)
+    return egocentric_cells(x, y, fwd, right, ahead, side, origin, float(frame.cell))

@@ -219,6 +219,23 @@ def mark_floor_seen(cam, rows, cols, depth, k, ext, camera_z, reach, floor_hit, 
 
 
 @_jit
+def egocentric_cells(x, y, fwd, right, ahead, side, origin, cell):
+    """Map rows and columns of the sample points ``(x, y) + ahead[i] * fwd + side[j] * right``
+    in (i, j) order, as numpy computed them from a meshgrid (the same float64 operations in the
+    same order, without the (N, 2) arrays)."""
+    n_side = len(side)
+    rows = np.empty(len(ahead) * n_side, np.int64)
+    cols = np.empty(len(ahead) * n_side, np.int64)
+    for i in range(len(ahead)):
+        for j in range(n_side):
+            wx = x + ahead[i] * fwd[0] + side[j] * right[0]
+            wy = y + ahead[i] * fwd[1] + side[j] * right[1]
+            cols[i * n_side + j] = np.int64(np.floor((wx - origin[0]) / cell))
+            rows[i * n_side + j] = np.int64(np.floor((wy - origin[1]) / cell))
+    return rows, cols
+
+
+@_jit
 def _crop_cell(i, size, sub):
     """The crop cell (a, b) of sample i of an egocentric grid sampled in (size, sub, size, sub)
     order (``crops._egocentric_cells``)."""

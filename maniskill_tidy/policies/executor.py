@@ -72,8 +72,7 @@ class SubGoalExecutor:
         if self._free(want, t) or want == state.cell:
             return want
         occupied = {c for c, until in self.blocked.items() if until >= t}
-        reach = self.planner.distances(state.cell, occupied)
-        return min(reach, key=lambda c: (np.hypot(c[0] - want[0], c[1] - want[1]), reach[c], c))
+        return self.planner.nearest_reachable(state.cell, want, occupied)
 
     def move(self, state: AgentState, goal: SubGoal, t: int) -> Action | None:
         """The next navigation action towards the sub-goal; None once there and turned."""

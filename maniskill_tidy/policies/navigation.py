@@ -29,10 +29,34 @@ class GridPlanner:
         graph.remove_nodes_from([(int(r), int(c)) for r, c in zip(*np.nonzero(~free), strict=True)])
         self.graph = graph
         self.house = house
+        self._cells = np.array(list(graph), dtype=np.int64).reshape(-1, 2)  # the free cells
 
     def distances(self, source: Cell, blocked: Iterable[Cell] = ()) -> dict[Cell, int]:
         """Path length in moves from ``source`` to every reachable free cell."""
         return nx.single_source_shortest_path_length(self._view(blocked, source), source)
+
+    def nearest_reachable(self, source: Cell, point: Cell, blocked: Iterable[Cell] = ()) -> Cell:
+        """The cell reachable from ``source`` (avoiding ``blocked``) nearest to ``point``, ties
+        to the one fewer moves away, then the smaller cell: the minimum over :meth:`distances`
+        of (distance to ``point``, moves, cell), found by searching outwards from ``point``
+        rather than from ``source`` (the point is a few cells from the source; the house is
+        thousands)."""
+        view = self._view(blocked, source)
+        squared = ((self._cells - np.asarray(point)) ** 2).sum(axis=1)
+        order = np.argsort(squared, kind="stable")
+        bounds = np.flatnonzero(np.diff(squared[order])) + 1
+        for ring in np.split(order, bounds):  # the cells at one distance from the point
+            moves = {}
+            for cell in map(tuple, self._cells[ring].tolist()):
+                if cell in view:
+                    try:
+                        moves[cell] = nx.shortest_path_length(view, source, cell)
+                    except nx.NetworkXNoPath:
+                        pass
+            if moves:
+                return min(moves, key=lambda c: (np.hypot(c[0] - point[0], c[1] - point[1]),
+                                                 moves[c], c))  # fmt: skip
+        return source
 
     def path(self, source: Cell, goal: Cell, blocked: Iterable[Cell] = ()) -> list[Cell] | None:
         """Cells from ``source`` to ``goal`` (both included), avoiding ``blocked``; None if cut."""
