@@ -171,7 +171,7 @@ class LearnedAgent(PerceivingAgent):
                 torch.from_numpy(self.p_detections), 1, self.decision.cfg.objects,
             )[None]  # fmt: skip
         self.x = x
-        with torch.no_grad():
+        with torch.inference_mode():
             sf, state = self.decision.state(x, self.lstm[0])
             self.lstm = (state, *self.lstm[1:])
             self.sf = sf
@@ -197,7 +197,7 @@ class LearnedAgent(PerceivingAgent):
     # ------------------------------------------------------------------ deciding and acting
     def act(self, inbox: list[Message]) -> Action | Targeted:
         inn, inter = self._received(inbox)
-        with torch.no_grad():
+        with torch.inference_mode():
             logits, states = self.decision.decide(
                 self.sf, inn[None, None], inter[None, None], self.x, self.lstm[1:]
             )

@@ -35,7 +35,7 @@ class MessageExchange:
         """Round ``round``; ``x`` holds this step's inputs (1, 1, ·) with ``prev_task``."""
         if round != 0:
             return
-        with torch.no_grad():
+        with torch.inference_mode():
             if not bool(self.messenger.sends(x).reshape(-1)[0]):
                 return
             vector = self.messenger.outgoing(x).reshape(-1).numpy()
@@ -54,7 +54,7 @@ class MessageExchange:
         msgs = [np.array(m.vector) for m in inbox if m.kind == "message"]
         if not msgs:
             return inn, inter
-        with torch.no_grad():
+        with torch.inference_mode():
             feats, _ = self.messenger.incoming(torch.from_numpy(np.stack(msgs)))
             inn, inter = pool(feats, torch.ones(len(msgs), dtype=torch.bool))
         return inn, inter
@@ -73,7 +73,7 @@ class LearnedCentral(CentralNode):
         if round != 0 or not uploads:
             return
         agents = [a for a in self.public.agents if a in uploads]
-        with torch.no_grad():
+        with torch.inference_mode():
             up = torch.from_numpy(np.stack([uploads[a] for a in agents]))
             out = self.planner(up, torch.ones(len(agents), dtype=torch.bool))
         for a, vector in zip(agents, out.numpy(), strict=True):

@@ -59,12 +59,13 @@ class PerceivingAgent(Agent):
             self.executor.failed(s, view.failed, self.t)
         self.failed = bool(view.failed)
         self.seg = np.asarray(o["segmentation"])
-        feats = self.perception.step_features(
-            torch.from_numpy(f.rgb[None]), torch.from_numpy(f.seen[None]),
-            torch.from_numpy(f.crop[None]), torch.zeros(len(f.det_type), dtype=torch.long),
-            torch.from_numpy(f.det_type), torch.from_numpy(f.det_rest),
-            torch.from_numpy(f.det_numeric),
-        )  # fmt: skip
+        with torch.inference_mode():  # no autograd bookkeeping at all: the same kernels
+            feats = self.perception.step_features(
+                torch.from_numpy(f.rgb[None]), torch.from_numpy(f.seen[None]),
+                torch.from_numpy(f.crop[None]), torch.zeros(len(f.det_type), dtype=torch.long),
+                torch.from_numpy(f.det_type), torch.from_numpy(f.det_rest),
+                torch.from_numpy(f.det_numeric),
+            )  # fmt: skip
         self.p_detections = feats["p_detections"].numpy()
         self.p_receptacles = feats["p_receptacles"].numpy()
         x = {k: feats[k][None] for k in ("sv", "sm", "fd", "fp", "mis", "det")}

@@ -52,7 +52,7 @@ class QmixAgent(PerceivingAgent):
 
     def observe(self, view: AgentView) -> None:
         self.obs = observation(self.perceive(view))[0]  # (1, OBS)
-        with torch.no_grad():
+        with torch.inference_mode():
             self.f = self.net.encode(self.obs)
 
     def send(self, round: int, inbox: list[Message]) -> None:
@@ -64,7 +64,7 @@ class QmixAgent(PerceivingAgent):
         for m in inbox:
             if m.kind == "state-feature":
                 others[0, self.slots.index(m.sender)] = torch.from_numpy(np.array(m.vector))
-        with torch.no_grad():
+        with torch.inference_mode():
             q, self.h = self.net(self.f, others, self.h)
         targets = self._targets()
         legal = np.array([a < Action.PickUp or targets.get(Action(a)) is not None
