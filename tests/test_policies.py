@@ -129,3 +129,45 @@ def test_assignments_are_six_values():
     assert v.shape == (6,)
     kind, object_type, xyz = decode_assignment(v)
     assert kind == FETCH and object_type == "Apple" and list(xyz) == [1.0, 2.0, 0.5]
+
+
+def test_the_cells_seen_close_up_are_those_numpy_marked():
+    """The heuristic agents' searched cells (points within COVER_RANGE of the camera) from
+    the kernel, against the numpy reading it replaced, bit for bit: float32 points, some on
+    the range's and the cells' borders, some off the grid."""
+    from types import SimpleNamespace
+
+    from maniskill_tidy.perception.map_kernels import mark_near_cells
+    from maniskill_tidy.policies.heuristic import COVER_RANGE
+
+    # an origin float32 cannot hold, so that the cells' arithmetic precision matters
+    nav = SimpleNamespace(origin=(-3.1, 2.7), cell=0.25, shape=(24, 32))
+    rng = np.random.default_rng(1)
+    size = np.array(nav.shape[::-1]) * nav.cell
+    for _ in range(20):
+        camera = np.array([*(nav.origin + rng.uniform(0, 1, 2) * size), 1.0])
+        points = np.concatenate(
+            [
+                camera[:2] + rng.normal(0, 1.5, (4000, 2)),
+                camera[:2]
+                + COVER_RANGE * np.stack([np.cos(a := rng.uniform(0, 7, 200)), np.sin(a)], 1),
+                nav.origin + rng.integers(-2, 40, (200, 2)) * nav.cell,  # cell borders
+            ]
+        ).astype(np.float32)
+        # and the float32 neighbours of cell borders near the camera, where float32 and
+        # float64 arithmetic part
+        near_cell = np.floor((camera[:2] - nav.origin) / nav.cell)
+        steps = np.stack(np.meshgrid(np.arange(-6, 7), np.arange(-6, 7)), -1).reshape(-1, 2)
+        borders = (nav.origin + (near_cell + steps) * nav.cell).astype(np.float32)
+        points = np.concatenate([points, *(np.nextafter(borders, borders + d) for d in (-1, 0, 1))])
+        points = np.column_stack([points, rng.uniform(0, 2, len(points))]).astype(np.float32)
+        want = np.zeros(tuple(nav.shape), dtype=bool)
+        near = points[np.hypot(*(points[:, :2] - camera[:2]).T) < COVER_RANGE][:, :2]
+        rows = np.floor((near[:, 1] - nav.origin[1]) / nav.cell).astype(np.int64)
+        cols = np.floor((near[:, 0] - nav.origin[0]) / nav.cell).astype(np.int64)
+        on = (rows >= 0) & (rows < want.shape[0]) & (cols >= 0) & (cols < want.shape[1])
+        want[rows[on], cols[on]] = True
+        got = np.zeros_like(want)
+        origin = np.asarray(nav.origin, np.float32)
+        mark_near_cells(points, camera, COVER_RANGE, origin, np.float32(nav.cell), got)
+        assert np.array_equal(got, want) and 0 < got.sum() < got.size

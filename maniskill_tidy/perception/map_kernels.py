@@ -285,3 +285,20 @@ def sample_shares(top_down, rows, cols, size, sub, obstacle, explored, first_cha
             for k in range(3):
                 out[a, b, k] = np.uint8(np.round(np.float32(counts[a, b, k]) / n * np.float32(255)))
     return out
+
+
+@_jit
+def mark_near_cells(points, camera, reach, origin, cell, grid):
+    """Set ``grid``'s cells (rows y, columns x from ``origin``, ``cell`` wide) under the points
+    within ``reach`` of ``camera`` (horizontally). numpy took the distance in float64 and the
+    cell in the points' dtype (``origin`` and ``cell`` come in it)."""
+    rows, cols = grid.shape
+    for i in range(len(points)):
+        dx = np.float64(points[i, 0]) - camera[0]
+        dy = np.float64(points[i, 1]) - camera[1]
+        if not np.hypot(dx, dy) < reach:
+            continue
+        c = np.int64(np.floor((points[i, 0] - origin[0]) / cell))
+        r = np.int64(np.floor((points[i, 1] - origin[1]) / cell))
+        if 0 <= r < rows and 0 <= c < cols:
+            grid[r, c] = True

@@ -37,6 +37,7 @@ from maniskill_tidy.perception.detections import (
     surface_table,
 )
 from maniskill_tidy.perception.frame_inputs import camera_pitch
+from maniskill_tidy.perception.map_kernels import mark_near_cells
 from maniskill_tidy.perception.semantic_map import MapConfig, SemanticMap
 from maniskill_tidy.policies.base import (
     EXPLORE,
@@ -128,8 +129,9 @@ class HeuristicAgent(JobChoice, Agent):
         self.map.update(o)
         frame = self.map.last_frame
         nav = self.house.navgrid
-        near = frame.points[np.hypot(*(frame.points[:, :2] - frame.camera[:2]).T) < COVER_RANGE]
-        self.covered[planner_cells(nav, near[:, :2], self.covered.shape)] = True
+        dtype = frame.points.dtype  # the cell arithmetic in the points' precision, as numpy's
+        mark_near_cells(frame.points, frame.camera, COVER_RANGE, np.asarray(nav.origin, dtype),
+                        dtype.type(nav.cell), self.covered)  # fmt: skip
         for name, xy in seen_robots(frame, self.public.instances).items():
             if name != self.name:
                 self.teammates[name] = (nav.cell_of(float(xy[0]), float(xy[1])), self.t)
@@ -323,14 +325,6 @@ class HeuristicAgent(JobChoice, Agent):
             self.dismissed.append(self._looking)
         self.reports = [r for r in self.reports if r is not self._looking]
         self._looking = None
-
-
-def planner_cells(nav, xy: np.ndarray, shape) -> tuple[np.ndarray, np.ndarray]:
-    """(rows, cols) of the planner cells under world points (N, 2) that lie on the grid."""
-    rows = np.floor((xy[:, 1] - nav.origin[1]) / nav.cell).astype(np.int64)
-    cols = np.floor((xy[:, 0] - nav.origin[0]) / nav.cell).astype(np.int64)
-    on = (rows >= 0) & (rows < shape[0]) & (cols >= 0) & (cols < shape[1])
-    return rows[on], cols[on]
 
 
 class HeuristicTeam(Team):
