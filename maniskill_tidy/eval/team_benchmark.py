@@ -6,8 +6,8 @@ with the same seed and the team's observation mode (the same renders, no percept
 decision or messages). The ratio is the team's cost in units of the env's. The replay must end
 as the episode did (same success and objects placed), or the figure is refused.
 
-Then the 2-worker / 1-worker ratio of ``eval`` for each team: what a second process buys, and
-the cores each run kept busy.
+Then the 2-worker / 1-worker ratio of ``eval`` for each team, over the whole command and in
+steady state: what a second process buys, and the cores each run kept busy.
 """
 
 from __future__ import annotations
