@@ -71,8 +71,8 @@ def worker_threads(workers: int) -> int:
 def auto_workers(jobs: int) -> int:
     """``--workers auto``: one process per core of this machine's share, no more than there
     are jobs. One process keeps only about 1.4 cores busy (lavapipe and the agents wait on each
-    other), so on 2 cores a second process plays 1.7-1.9 times the episodes in steady state
-    (``bench --only teams``; docs/scaling.md)."""
+    other), so on 2 cores a second process plays 1.4-1.9 times the episodes in steady state
+    (``bench --only teams``, which varies that much between runs; docs/scaling.md)."""
     return max(1, min(worker_threads(1), jobs))
 
 
