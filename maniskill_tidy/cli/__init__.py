@@ -28,7 +28,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from maniskill_tidy.common.parallel import JobError, WorkerLostError
+    from maniskill_tidy.common.parallel import JobError, WorkerLostError, workers_option
     from maniskill_tidy.houses.procthor import ProcTHORImportError
     from maniskill_tidy.tasks.dataset import DatasetError
 
@@ -36,8 +36,8 @@ def main(argv: list[str] | None = None) -> int:
 
     args = build_parser().parse_args(argv)
     try:
-        if isinstance(getattr(args, "workers", None), int) and args.workers < 1:
-            raise ValueError(f"--workers {args.workers}: expected at least 1 process")
+        if getattr(args, "workers", None) is not None:
+            workers_option(args.workers)  # a number of at least 1 (or eval's auto), else refused
         if getattr(args, "ray", None):  # before anything is written
             from maniskill_tidy.common.parallel import check_ray
 

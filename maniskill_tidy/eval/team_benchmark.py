@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 
 from maniskill_tidy.eval.episode import Execution, play_episode
-from maniskill_tidy.eval.runner import RunConfig, evaluate, make_env, select
+from maniskill_tidy.eval.runner import RunConfig, evaluate, make_env, run_dir, select
 from maniskill_tidy.policies import make_team
 
 TEAMS = ("heuristic-none", "heuristic-broadcast", "hangrcom")
@@ -107,7 +107,7 @@ def bench_workers(policy: str, episodes: int = 6, dataset: str | None = None) ->
             summary = evaluate(cfg, Path(out), workers, progress=False)
             wall = time.perf_counter() - start
             rate[workers], busy[workers] = summary["episodes"] / wall, (cpu_seconds() - cpu) / wall
-            lines = next(Path(out).rglob("episodes.jsonl")).read_text().splitlines()
+            lines = (run_dir(Path(out), cfg) / "episodes.jsonl").read_text().splitlines()
             played[workers] = sum(json.loads(line)["seconds"] for line in lines)
     return {"team": policy, "episodes": episodes, "two_over_one": rate[2] / rate[1],
             "steady": 2 * played[1] / played[2], "cores_one": busy[1],
