@@ -170,6 +170,30 @@ def test_frozen_model_reuses_sq_until_a_weight_changes(houses):
     assert model.knowledge_nodes().requires_grad  # training: recomputed, with gradients
 
 
+def test_frozen_attention_keys_give_the_bits_of_the_full_attention(houses):
+    """reason() reuses the nodes' keys and values while frozen; its outputs must be the
+    attention computed from scratch, and a changed attention weight must be seen."""
+    model = new_model(houses, True).eval()
+    rng = torch.Generator().manual_seed(0)
+    sl, sr = (
+        torch.randn(5, model.cfg.dim, generator=rng),
+        torch.randn(5, model.cfg.dim, generator=rng),
+    )
+    with torch.no_grad():
+        for _ in range(2):  # the first call fills the cache, the second reads it
+            attl, weights = model._commonsense("object_attention", sl)
+            attr, _ = model._commonsense("room_attention", sr)
+            full_l, full_w = model.object_attention(sl, model.gcn())
+            assert torch.equal(attl, full_l) and torch.equal(weights, full_w)
+            assert torch.equal(attr, model.room_attention(sr, model.gcn())[0])
+        model.object_attention.v.weight.add_(0.01)
+        assert torch.equal(
+            model._commonsense("object_attention", sl)[0],
+            model.object_attention(sl, model.gcn())[0],
+        )
+        assert not torch.equal(model._commonsense("object_attention", sl)[0], attl)
+
+
 def _train_quick(houses, views, tmp: Path, knowledge=True, epochs=None, seed=0):
     cfg = TrainConfig(
         seed=seed, batch=32, epochs=epochs or {"visual": 1, "scene": 1, "room": 25, "reasoning": 25}
@@ -283,3 +307,29 @@ def test_perception_reports_side_by_side_name_each_look(tmp_path):
     assert (tmp_path / "v2" / "TEST_BESIDE.md").read_text().startswith(head)
     with pytest.raises(FileNotFoundError, match="perception-report --agents"):
         beside(tmp_path / "v2", [tmp_path / "missing"], "test")
+
+
+def test_channels_last_weights_give_a_team_the_same_bits():
+    """A team's models run with channels-last convolution weights (``for_agents``, faster):
+    every encoder of the shipped models must give the bits the stored layout gives, on the
+    channels-last inputs the agents pass (H x W x C permuted)."""
+    import copy
+
+    from maniskill_tidy.models.checkpoints import for_agents, load_decision
+
+    perception = load_perception(Path("agents/perception/knowledge"))
+    decision, _ = load_decision(Path("agents/hangrcom/setting_I"))
+    rng = np.random.default_rng(0)
+    k = perception.cfg.categories + 2
+    rgb = torch.from_numpy(rng.integers(0, 256, (6, 1, 64, 64, 3), dtype=np.uint8))
+    crop = torch.from_numpy(rng.random((6, 1, 20, 20, k)) < 0.1)
+    layout = torch.from_numpy((rng.random((6, 1, 20, 20, 4)) < 0.3).astype(np.float32))
+    encoders = [(perception.visual, rgb), (perception.scene, crop)]
+    encoders += [(a.subgoal.layout, layout) for a in decision.agents if a.subgoal.layout]
+    assert len(encoders) > 2
+    for encoder, inputs in encoders:
+        fast = for_agents(copy.deepcopy(encoder))
+        assert any(p.dim() == 4 and not p.is_contiguous() for p in fast.parameters())
+        with torch.inference_mode():
+            for x in inputs:
+                assert torch.equal(fast(x), encoder(x)), type(encoder).__name__

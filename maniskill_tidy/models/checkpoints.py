@@ -94,6 +94,14 @@ def read(folder: Path, train_hint: str) -> dict:
     return _load(Path(folder) / WEIGHTS, train_hint)
 
 
+def for_agents(model: torch.nn.Module) -> torch.nn.Module:
+    """``model`` with its convolution weights stored channels-last, for a team's batch-of-one
+    steps. Their inputs are already channels-last (permuted from H x W x C), so oneDNN takes
+    the same kernel either way; with matching weights it no longer reorders them on every call
+    (about 0.2 ms per encoder call, the same bits: ``tests/test_checkpoints.py``)."""
+    return model.to(memory_format=torch.channels_last)
+
+
 # ----------------------------------------------------------------- the decision team
 def save_decision(model: TeamDecision, folder: Path, extra: dict) -> None:
     payload = {"config": asdict(model.cfg), "agents": len(model.agents), "state": _half(model)}

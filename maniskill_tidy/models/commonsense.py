@@ -45,6 +45,16 @@ class CommonsenseAttention(nn.Module):
 
     def forward(self, query: torch.Tensor, sq: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """(attended feature (B, dim), attention weights over the nodes (B, nodes))."""
-        scores = self.q(query) @ self.k(sq).T / math.sqrt(query.shape[-1])
+        return self.attend(query, *self.keys_values(sq))
+
+    def keys_values(self, sq: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """The nodes' keys and values: they depend on the weights alone, so a frozen model
+        may compute them once (``PerceptionModel.frozen``)."""
+        return self.k(sq), self.v(sq)
+
+    def attend(
+        self, query: torch.Tensor, keys: torch.Tensor, values: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        scores = self.q(query) @ keys.T / math.sqrt(query.shape[-1])
         weights = scores.softmax(dim=-1)
-        return self.norm(query + weights @ self.v(sq)), weights
+        return self.norm(query + weights @ values), weights

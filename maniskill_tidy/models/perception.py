@@ -85,17 +85,31 @@ class PerceptionModel(nn.Module):
     def sr(self, seen: torch.Tensor, sv: torch.Tensor) -> torch.Tensor:
         return self.room_classifier.embed(seen, sv)
 
-    def knowledge_nodes(self) -> torch.Tensor:
-        """sq. It depends on the weights alone, so a frozen model (eval mode, no gradient)
-        computes it once and reuses it until a weight changes (a learned team asks for it on
-        every step of every agent)."""
+    def frozen(self, name: str, modules: list[nn.Module], compute):
+        """``compute()``, which depends on the weights of ``modules`` alone: a frozen model
+        (eval mode, no gradient) computes it once and reuses it until one of those weights
+        changes (a learned team asks for it on every step of every agent)."""
         if self.training or torch.is_grad_enabled():
-            return self.gcn()
-        tensors = [*self.gcn.parameters(), *self.gcn.buffers()]  # no state_dict: it is per step
+            return compute()
+        # parameters and buffers, not state_dict: this runs per step
+        tensors = [t for m in modules for t in (*m.parameters(), *m.buffers())]
         key = tuple((t.data_ptr(), t._version) for t in tensors)
-        if getattr(self, "_sq", (None,))[0] != key:
-            self._sq = (key, self.gcn())
-        return self._sq[1]
+        cache = self.__dict__.setdefault("_frozen", {})
+        if cache.get(name, (None,))[0] != key:
+            cache[name] = (key, compute())
+        return cache[name][1]
+
+    def knowledge_nodes(self) -> torch.Tensor:
+        """sq (frozen: once)."""
+        return self.frozen("sq", [self.gcn], self.gcn)
+
+    def _commonsense(self, name: str, query: torch.Tensor):
+        """attl or attr and its weights; the nodes' keys and values once while frozen."""
+        attention = getattr(self, name)
+        keys_values = self.frozen(
+            name, [self.gcn, attention], lambda: attention.keys_values(self.knowledge_nodes())
+        )
+        return attention.attend(query, *keys_values)
 
     def reason(
         self,
@@ -109,9 +123,8 @@ class PerceptionModel(nn.Module):
         sl = self.detection(kind, rest, numeric)
         weights = None
         if self.cfg.knowledge:
-            sq = self.knowledge_nodes()
-            attl, weights = self.object_attention(sl, sq)
-            attr, _ = self.room_attention(sr, sq)
+            attl, weights = self._commonsense("object_attention", sl)
+            attr, _ = self._commonsense("room_attention", sr)
         else:
             attl, attr = sl, sr
         x = torch.cat([attl, attr, sv], dim=-1)

@@ -28,6 +28,7 @@ from maniskill_tidy.envs.robots import robot_kind
 from maniskill_tidy.knowledge import ROOM_TYPES, load_catalog
 from maniskill_tidy.models.checkpoints import (
     CheckpointError,
+    for_agents,
     load_decision,
     load_perception,
     verify,
@@ -399,7 +400,7 @@ class LearnedTeam(Team):
             torch.set_num_threads(1)
             model, _ = load_decision(self.model_folder(capabilities))
             perception = load_perception(resolve(self.config.perception))
-            self._loaded[setting] = (model, perception)
+            self._loaded[setting] = (for_agents(model), for_agents(perception))
         return self._loaded[setting]
 
     def make_agent(self, name: str, public: PublicInfo, outbox: Outbox) -> Agent:

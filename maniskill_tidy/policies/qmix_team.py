@@ -19,7 +19,13 @@ import numpy as np
 import torch
 
 from maniskill_tidy.envs.actions import Action, Targeted
-from maniskill_tidy.models.checkpoints import CheckpointError, load_perception, load_qmix, verify
+from maniskill_tidy.models.checkpoints import (
+    CheckpointError,
+    for_agents,
+    load_perception,
+    load_qmix,
+    verify,
+)
 from maniskill_tidy.models.qmix import ACTIONS, QmixTeamModel, observation
 from maniskill_tidy.policies.base import EXPLORE, Agent, AgentView, PublicInfo, SubTask, Team
 from maniskill_tidy.policies.channel import Message, Outbox
@@ -131,7 +137,8 @@ class QmixTeam(Team):
         if setting not in self._loaded:
             torch.set_num_threads(1)
             model, saved = load_qmix(resolve(self.folder) / f"setting_{setting}")
-            self._loaded[setting] = (model, load_perception(resolve(saved["perception"])))
+            perception = load_perception(resolve(saved["perception"]))
+            self._loaded[setting] = (for_agents(model), for_agents(perception))
         return self._loaded[setting]
 
     def make_agent(self, name: str, public: PublicInfo, outbox: Outbox) -> Agent:
