@@ -5,7 +5,9 @@
 Plays the first steps of a hangrcom Setting I test episode, keeps every agent's inputs to the
 frozen perception model, then times them as three batches of one per step against one batch of
 three (one thread, as the team runs). Then the reason records would change: the last bits of a
-torch CPU linear layer's row for batches of 1 to 8 rows. Nothing is written.
+torch CPU linear layer's row for batches of 1 to 8 rows. Last, the decision's LSTM steps: torch
+runs them through oneDNN (its default on the CPU), which reorders the weights on every call;
+its native kernel is faster at a batch of one but gives other bits. Nothing is written.
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ from maniskill_tidy.models.perception import PerceptionModel
 from maniskill_tidy.policies import make_team
 
 
-def captured_inputs(steps: int, dataset: str) -> tuple[PerceptionModel, list[tuple]]:
+def captured_inputs(steps: int, dataset: str) -> tuple[torch.nn.Module, PerceptionModel, list]:
     calls: list[tuple] = []
     step_features = PerceptionModel.step_features
 
@@ -38,7 +40,7 @@ def captured_inputs(steps: int, dataset: str) -> tuple[PerceptionModel, list[tup
         obs, _, _, _, info = env.step(execution.step(obs, info))
     env.close()
     PerceptionModel.step_features = step_features
-    return next(iter(team._loaded.values()))[1], calls
+    return (*next(iter(team._loaded.values())), calls)
 
 
 def batched(group: list[tuple]) -> tuple:
@@ -55,7 +57,7 @@ def main() -> None:
     p.add_argument("--dataset", default="data/tidy120")
     args = p.parse_args()
     torch.set_num_threads(1)
-    model, calls = captured_inputs(args.steps, args.dataset)
+    decision, model, calls = captured_inputs(args.steps, args.dataset)
     steps = [calls[j : j + 3] for j in range(0, len(calls) - 2, 3)]
     batches = [batched(g) for g in steps]
     with torch.inference_mode():
@@ -81,6 +83,34 @@ def main() -> None:
         content = torch.equal(linear(other)[0], linear(x)[0])
     print("row 0 of a linear layer equals its batch-of-one bits for batches of 1..8:", same)
     print("row 0 independent of the other rows' values (batch of 8):", content)
+    lstm_steps(decision.agents[0])
+
+
+def lstm_steps(agent: torch.nn.Module, steps: int = 200) -> None:
+    """Each of one agent's LSTMs (F_s, F_a, F_g) stepped as the team steps it, oneDNN against
+    torch's native kernel: milliseconds per step and whether the outputs are the same bits."""
+    torch.manual_seed(0)
+    for name, lstm in [("F_s", agent.state.lstm), ("F_a", agent.subtask.lstm),
+                       ("F_g", agent.subgoal.lstm)]:  # fmt: skip
+        xs = torch.randn(steps, 1, 1, lstm.input_size)
+
+        def run(lstm=lstm, xs=xs) -> tuple[torch.Tensor, float]:
+            state, out = None, []
+            start = time.perf_counter()
+            for x in xs:
+                y, state = lstm(x, state)
+                out.append(y)
+            return torch.stack(out), 1e3 * (time.perf_counter() - start) / len(xs)
+
+        with torch.inference_mode():
+            run()
+            onednn, t_onednn = run()
+            with torch.backends.mkldnn.flags(enabled=False):
+                run()
+                native, t_native = run()
+        print(f"{name} LSTM ({lstm.input_size} -> {lstm.hidden_size}) per step: oneDNN "
+              f"{t_onednn:.3f} ms, native {t_native:.3f} ms, same bits: "
+              f"{torch.equal(onednn, native)}")  # fmt: skip
 
 
 if __name__ == "__main__":
