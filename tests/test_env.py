@@ -193,6 +193,28 @@ def test_truncation_at_max_steps():
         e.close()
 
 
+def test_episodes_free_their_scenes_and_close_thaws_the_frozen_heap():
+    """The env freezes what the process loaded before its first episode out of ManiSkill's
+    per-episode full collections (they walked it all): an old episode's scene must still be
+    freed, and close() must thaw the heap for the rest of the process."""
+    import gc
+    import weakref
+
+    gc.unfreeze()
+    e = HeteroTidyEnv(setting="I", split="test", obs_mode="none")
+    try:
+        assert gc.get_freeze_count() > 0
+        scenes = []
+        for i in range(4):
+            e.reset(seed=i, options={"episode": i})
+            scenes.append(weakref.ref(e.scene))
+        gc.collect()  # the previous scene is still referenced while the next one is built
+        assert [s() is None for s in scenes] == [True, True, True, False]
+    finally:
+        e.close()
+    assert gc.get_freeze_count() == 0
+
+
 def test_segmentation_ids_and_depth_land_on_the_instance(env):
     """Back-project every pixel of an instance with depth + camera matrices: it must lie in the
     instance's box. This checks segmentation, depth, intrinsics and extrinsics together."""
