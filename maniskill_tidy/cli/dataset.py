@@ -58,8 +58,6 @@ def _generate_procthor(args: argparse.Namespace) -> int:
 def _generate(args: argparse.Namespace) -> int:
     from maniskill_tidy.tasks.dataset import generate_dataset
 
-    if args.workers < 1:
-        raise ValueError(f"--workers must be at least 1, got {args.workers}")
     if args.procthor:
         return _generate_procthor(args)
     if args.houses is None:

@@ -166,6 +166,38 @@ def _pr_curve(score: np.ndarray, truth: np.ndarray, points: int = 50) -> list[li
     return curve
 
 
+# Every figure of a variant's metrics (``SPLIT_metrics.json``): its row name, its path, and
+# whether it is a headline figure (the side-by-side table of several agent folders shows those).
+FIGURES = (
+    ("room classifier accuracy", ("room", "accuracy"), True),
+    ("detector precision (misplaced)", ("detector", "precision"), True),
+    ("detector recall (misplaced)", ("detector", "recall"), True),
+    ("detector f1 (misplaced)", ("detector", "f1"), True),
+    ("receptacle top-1 reasonable & in house", ("receptacle", "top1_reasonable_in_house"), True),
+    ("receptacle top-1 reasonable (D only)", ("receptacle", "top1_reasonable"), False),
+    ("room top-1 reasonable & in house", ("receptacle", "room_top1_reasonable_in_house"), True),
+    ("scene-encoder query accuracy", ("scene", "accuracy"), False),
+    ("scene-encoder query F1 (positives)", ("scene", "f1"), True),
+    ("scene-encoder query average precision", ("scene", "average_precision"), True),
+)
+
+
+def baseline(metrics: dict, group: str, key: str) -> str:
+    """The trivial baselines a figure is read against, as ``metrics`` records them."""
+    m = metrics[group]
+    if group == "room":
+        return f"{m['majority']:.3f} (majority room)"
+    if group == "detector":
+        return f"{m['always_misplaced'][key]:.3f} always / {m['type_prior'][key]:.3f} type prior"
+    if group == "scene":
+        return f"{m['prior_' + key]:.3f} (per-query prior)"
+    prefix = {"top1_reasonable_in_house": "", "room_top1_reasonable_in_house": "room_"}
+    if key not in prefix:
+        return ""
+    return (f"{m[prefix[key] + 'global_prior']:.3f} global / "
+            f"{m[prefix[key] + 'type_prior']:.3f} type prior")  # fmt: skip
+
+
 def format_report(results: dict[str, dict], split: str) -> str:
     """A markdown table: each figure with and without knowledge, next to its baselines."""
     a, b = results.get("knowledge"), results.get("no-knowledge")
@@ -174,56 +206,10 @@ def format_report(results: dict[str, dict], split: str) -> str:
         "| w/o Know. | trivial baseline |",
         "|---|---|---|---|",
     ]
-
-    def row(name: str, get, base: str) -> None:
-        vals = [f"{get(r):.3f}" if r else "-" for r in (a, b)]
-        rows.append(f"| {name} | {vals[0]} | {vals[1]} | {base} |")
-
-    row("room classifier accuracy", lambda r: r["room"]["accuracy"],
-        f"{a['room']['majority']:.3f} (majority room)")  # fmt: skip
-    d = a["detector"]
-    for key in ("precision", "recall", "f1"):
-        row(
-            f"detector {key} (misplaced)",
-            lambda r, k=key: r["detector"][k],
-            f"{d['always_misplaced'][key]:.3f} always / {d['type_prior'][key]:.3f} type prior",
-        )
-    rc = a["receptacle"]
-    row(
-        "receptacle top-1 reasonable & in house",
-        lambda r: r["receptacle"]["top1_reasonable_in_house"],
-        f"{rc['global_prior']:.3f} global / {rc['type_prior']:.3f} type prior",
-    )
-    row("receptacle top-1 reasonable (D only)", lambda r: r["receptacle"]["top1_reasonable"], "")
-    row(
-        "room top-1 reasonable & in house",
-        lambda r: r["receptacle"]["room_top1_reasonable_in_house"],
-        f"{rc['room_global_prior']:.3f} global / {rc['room_type_prior']:.3f} type prior",
-    )
-    s = a["scene"]
-    row(
-        "scene-encoder query accuracy",
-        lambda r: r["scene"]["accuracy"],
-        f"{s['prior_accuracy']:.3f} (per-query prior)",
-    )
-    row("scene-encoder query F1 (positives)", lambda r: r["scene"]["f1"],
-        f"{s['prior_f1']:.3f} (per-query prior)")  # fmt: skip
-    row("scene-encoder query average precision", lambda r: r["scene"]["average_precision"],
-        f"{s['prior_average_precision']:.3f} (per-query prior)")  # fmt: skip
+    for name, (group, key), _ in FIGURES:
+        vals = [f"{r[group][key]:.3f}" if r else "-" for r in (a, b)]
+        rows.append(f"| {name} | {vals[0]} | {vals[1]} | {baseline(a, group, key)} |")
     return "\n".join(rows)
-
-
-# The headline figures, as paths into a variant's metrics (``SPLIT_metrics.json``).
-FIGURES = (
-    ("room classifier accuracy", ("room", "accuracy")),
-    ("detector precision (misplaced)", ("detector", "precision")),
-    ("detector recall (misplaced)", ("detector", "recall")),
-    ("detector f1 (misplaced)", ("detector", "f1")),
-    ("receptacle top-1 reasonable & in house", ("receptacle", "top1_reasonable_in_house")),
-    ("room top-1 reasonable & in house", ("receptacle", "room_top1_reasonable_in_house")),
-    ("scene-encoder query F1 (positives)", ("scene", "f1")),
-    ("scene-encoder query average precision", ("scene", "average_precision")),
-)
 
 
 def format_beside(results: dict[str, dict[str, dict]], split: str) -> str:
@@ -238,7 +224,7 @@ def format_beside(results: dict[str, dict[str, dict]], split: str) -> str:
     counts = [f"{results[n][v]['frames']} / {results[n][v]['detections']}"
               for v in variants for n in names]  # fmt: skip
     rows.append("| frames / detections | " + " | ".join(counts) + " |")
-    for name, (group, key) in FIGURES:
+    for name, (group, key), _ in (f for f in FIGURES if f[2]):
         vals = [f"{results[n][v][group][key]:.3f}" for v in variants for n in names]
         rows.append(f"| {name} | " + " | ".join(vals) + " |")
     return "\n".join(rows)
