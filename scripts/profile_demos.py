@@ -22,10 +22,10 @@ from pathlib import Path
 from maniskill_tidy.training.decision_data import DemoConfig, build_demo_features
 
 # (label, file suffix, function name) of the calls the split names; a reset inside the env's
-# constructor (ManiSkill's first one, which also compiles the renderer's shaders) counts as
+# constructor (ManiSkill's first one, with the first render of the process) counts as
 # making the env, not as an episode's reset
 PARTS = (
-    ("making the env (first render: shaders)", "envs/hetero_tidy.py", "__init__"),
+    ("making the env (set-up, first render)", "envs/hetero_tidy.py", "__init__"),
     ("env steps (cameras drawn)", "envs/hetero_tidy.py", "step"),
     ("expert previews", "envs/hetero_tidy.py", "preview"),
     ("agents' readers", "perception/frame_inputs.py", "read"),
