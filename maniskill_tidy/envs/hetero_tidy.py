@@ -148,9 +148,10 @@ class HeteroTidyEnv(BaseEnv):
         self.single_action_space = self.action_space
         # ManiSkill collects all garbage at every reconfigure, here every episode (see reset),
         # and a full collection walked everything the process had loaded (the episodes, the
-        # libraries): 0.23 of a 0.27 s reset. What exists now lives as long as the env, so it
-        # is frozen out of those collections and each walks only what was made since; close()
-        # thaws it (a second env in the process only finds less frozen).
+        # libraries): a reset took 0.27 s, now 0.07 (v1, `bench --only looks`). What exists
+        # now lives as long as the env, so it is frozen out of those collections and each
+        # walks only what was made since; close() thaws it (a second env in the process only
+        # finds less frozen).
         gc.collect()
         gc.freeze()
 
@@ -269,7 +270,7 @@ class HeteroTidyEnv(BaseEnv):
         if key is None:
             key = int(self.np_random.integers(len(self.episodes)))
         self._episode = self.episodes.get(key)
-        # Rebuild the scene every episode (about 0.04 s in v1, 0.07 s in v2): PhysX keeps
+        # Rebuild the scene every episode (0.07 s in v1, 0.12 s in v2): PhysX keeps
         # contact and sleep state between episodes of one house, so reusing the scene let an
         # episode's settled poses depend, by micrometres, on the episodes played before it in
         # the same process.
