@@ -253,7 +253,7 @@ def pooled_samples(top_down, rows, cols, size, sub):
         if r < 0 or r >= n_rows or c < 0 or c >= n_cols:
             continue
         a, b = _crop_cell(i, size, sub)
-        for k in range(channels):  # indexed, not through row views: 0.22 -> 0.14 ms a crop
+        for k in range(channels):  # indexed, not through per-sample row views (faster)
             v = top_down[r, c, k]
             if v > out[a, b, k]:
                 out[a, b, k] = v
