@@ -21,6 +21,7 @@ from maniskill_tidy.models.decision import (
     TeamDecision,
     crop_goal,
     crop_layout,
+    goal_maps,
     suspects,
 )
 from maniskill_tidy.policies.agent_config import AgentConfig, TrainSettings
@@ -260,6 +261,36 @@ def test_goal_map_points_at_the_subtask_target_object_or_receptacle():
     assert SubGoalPredictor(cfg).goal(x, task)[0, 0].sum() < 1e-3  # no mug in the crop
     with pytest.raises(ValueError, match="goal_map needs layout"):
         SubGoalPredictor(replace(cfg, layout=False))
+
+
+def test_agents_unpacked_goal_maps_give_the_packed_training_rows_bits():
+    """A learned agent hands its crop's goal maps to F_g as they are, training rows store them
+    bit-packed: the goal channel must be the same, bit for bit, on a busy crop."""
+    catalog = load_catalog()
+    k = len(catalog.categories)
+    cfg = DecisionConfig(
+        categories=k, objects=len(catalog.pickupable), receptacles=len(catalog.receptacles),
+        layout=True, goal_map=True,
+    )  # fmt: skip
+    rng = np.random.default_rng(0)
+    crop = rng.random((20, 20, k + 2)) < 0.2
+    held = torch.tensor([[-1, 3]])
+    task = {
+        "object": torch.randn(1, 2, cfg.objects),
+        "receptacle": torch.randn(1, 2, cfg.receptacles),
+    }
+    f_g = SubGoalPredictor(cfg)
+    packed = f_g.goal(
+        {
+            "layout": torch.zeros(1, 2, 20, 20, 3),
+            "held": held,
+            "goal": torch.from_numpy(crop_goal(crop))[None, None].repeat(1, 2, 1),
+        },
+        task,
+    )
+    maps = torch.from_numpy(goal_maps(crop))[None, None].float().repeat(1, 2, 1, 1, 1)
+    unpacked = f_g.goal({"goal_maps": maps, "held": held}, task)
+    assert packed.sum() > 0 and torch.equal(packed, unpacked)
 
 
 def test_suspects_keep_each_pickupable_types_highest_misplaced_probability():

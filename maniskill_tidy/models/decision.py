@@ -131,14 +131,21 @@ def crop_layout(crop: np.ndarray) -> np.ndarray:
     return np.stack([crop[..., OBSTACLE], crop[..., EXPLORED], objects], -1).astype(np.uint8)
 
 
-def crop_goal(crop: np.ndarray) -> np.ndarray:
-    """(…, G, G, K + 2) 0/1 crop -> (…, G * G * (o + p) / 8) uint8: its pickupable-type and
-    receptacle-type channels, bit-packed (a few kB per row instead of 43 kB)."""
+def goal_maps(crop: np.ndarray) -> np.ndarray:
+    """(…, G, G, K + 2) 0/1 crop -> (…, G, G, o + p) bool: its pickupable-type and
+    receptacle-type channels (a type the map has no channel for stays empty)."""
     crop = np.asarray(crop, dtype=bool)
     obj, rec = goal_channels()
     picked = np.take(crop, np.concatenate([obj, rec]).clip(min=0), axis=-1)
     picked[..., np.concatenate([obj, rec]) < 0] = False
-    return np.packbits(picked.reshape(*crop.shape[:-3], -1), axis=-1)
+    return picked
+
+
+def crop_goal(crop: np.ndarray) -> np.ndarray:
+    """:func:`goal_maps`, bit-packed: (…, G * G * (o + p) / 8) uint8 (a few kB per training
+    row instead of 43 kB)."""
+    crop = np.asarray(crop)
+    return np.packbits(goal_maps(crop).reshape(*crop.shape[:-3], -1), axis=-1)
 
 
 def unpack_goal(packed: torch.Tensor, size: int, types: int) -> torch.Tensor:
@@ -256,8 +263,11 @@ class SubGoalPredictor(nn.Module):
     def goal(self, x: dict[str, torch.Tensor], task: dict[str, torch.Tensor]) -> torch.Tensor:
         """(…, G, G) the sub-task's target in the crop: the object while the hands are empty,
         the receptacle while holding (probabilities of F_a's heads over the crop's channels)."""
-        size = x["layout"].shape[-2]
-        maps = unpack_goal(x["goal"], size, self.cfg.objects + self.cfg.receptacles)
+        if "goal_maps" in x:  # an agent's own step: its crop's maps, never packed
+            maps = x["goal_maps"]
+        else:  # training rows store them bit-packed
+            size = x["layout"].shape[-2]
+            maps = unpack_goal(x["goal"], size, self.cfg.objects + self.cfg.receptacles)
         obj = torch.einsum("...hwk,...k->...hw", maps[..., : self.cfg.objects],
                            task["object"].softmax(-1))  # fmt: skip
         rec = torch.einsum("...hwk,...k->...hw", maps[..., self.cfg.objects :],

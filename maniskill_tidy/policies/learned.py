@@ -34,7 +34,7 @@ from maniskill_tidy.models.checkpoints import (
     verify,
 )
 from maniskill_tidy.models.communication import TASK, scheme
-from maniskill_tidy.models.decision import DecisionConfig, crop_goal, crop_layout, suspects
+from maniskill_tidy.models.decision import DecisionConfig, crop_layout, goal_maps, suspects
 from maniskill_tidy.policies.agent_config import AgentConfig
 from maniskill_tidy.policies.base import (
     EXPLORE,
@@ -163,7 +163,7 @@ class LearnedAgent(PerceivingAgent):
         if self.decision.cfg.layout:
             x["layout"] = torch.from_numpy(crop_layout(f.crop))[None, None]
         if self.decision.cfg.goal_map:
-            x["goal"] = torch.from_numpy(crop_goal(f.crop))[None, None]
+            x["goal_maps"] = torch.from_numpy(goal_maps(f.crop))[None, None].float()
         if self.decision.cfg.wide_layout:
             x["wide"] = torch.from_numpy(f.wide)[None, None]
         if self.decision.cfg.suspects:
