@@ -193,15 +193,20 @@ def test_truncation_at_max_steps():
         e.close()
 
 
-def test_episodes_free_their_scenes_and_close_thaws_the_frozen_heap():
+def test_episodes_free_their_scenes_and_the_last_close_thaws_the_frozen_heap(monkeypatch):
     """The env freezes what the process loaded before its first episode out of ManiSkill's
     per-episode full collections (they walked it all): an old episode's scene must still be
-    freed, and close() must thaw the heap for the rest of the process."""
+    freed, the heap must stay frozen while any env is open (a second env's close must not slow
+    the first one's resets) and the last close must thaw it for the rest of the process."""
     import gc
     import weakref
 
+    from maniskill_tidy.envs import hetero_tidy
+
     gc.unfreeze()
+    monkeypatch.setattr(hetero_tidy, "_open_envs", 0)  # a module fixture's env may be open
     e = HeteroTidyEnv(setting="I", split="test", obs_mode="none")
+    other = HeteroTidyEnv(setting="I", split="test", obs_mode="none")
     try:
         assert gc.get_freeze_count() > 0
         scenes = []
@@ -210,7 +215,11 @@ def test_episodes_free_their_scenes_and_close_thaws_the_frozen_heap():
             scenes.append(weakref.ref(e.scene))
         gc.collect()  # the previous scene is still referenced while the next one is built
         assert [s() is None for s in scenes] == [True, True, True, False]
+        other.close()
+        other.close()  # a second close changes nothing
+        assert gc.get_freeze_count() > 0
     finally:
+        other.close()
         e.close()
     assert gc.get_freeze_count() == 0
 

@@ -65,6 +65,7 @@ from maniskill_tidy.tasks.teams import setting_team
 
 QUALITIES = ("fast", "high")
 LOOKS = ("flat", "realistic")  # HeteroTidy-v1, HeteroTidy-v2
+_open_envs = 0  # envs made and not yet closed in this process: the heap stays frozen while any is
 SEG_MAX = 2**15 - 1  # the render shader writes instance ids as int16
 FAR = 30.0  # metres, camera far plane
 LIMIT = 1e4  # bound of poses (m) and camera matrices in the observation space
@@ -150,14 +151,21 @@ class HeteroTidyEnv(BaseEnv):
         # and a full collection walked everything the process had loaded (the episodes, the
         # libraries): a reset took 0.27 s, now 0.07 (v1, `bench --only looks`). What exists
         # now lives as long as the env, so it is frozen out of those collections and each
-        # walks only what was made since; close() thaws it (a second env in the process only
-        # finds less frozen).
+        # walks only what was made since; the last env of the process to close thaws it.
+        global _open_envs
         gc.collect()
         gc.freeze()
+        _open_envs += 1
+        self._holds_freeze = True
 
     def close(self) -> None:
         super().close()
-        gc.unfreeze()
+        global _open_envs
+        if getattr(self, "_holds_freeze", False):  # close() may be called more than once
+            self._holds_freeze = False
+            _open_envs -= 1
+            if _open_envs == 0:
+                gc.unfreeze()
 
     # ------------------------------------------------------------------ spaces
     @cached_property
