@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import time
 from pathlib import Path
 
@@ -73,6 +74,37 @@ def test_pool_workers_get_their_share_of_the_cores_and_the_parent_is_untouched(m
     # in this process (one worker) nothing is changed
     (_, env), *_ = run_jobs([0], thread_knobs, workers=1)
     assert env["LP_NUM_THREADS"] is None
+
+
+def affinity(_job: int) -> list[int]:
+    import os
+    import time
+
+    time.sleep(0.2)  # every worker starts and takes a job
+    return sorted(os.sched_getaffinity(0))
+
+
+def test_core_shares_split_the_cores_into_disjoint_slices(monkeypatch):
+    from maniskill_tidy.common import parallel
+
+    monkeypatch.setattr(parallel.os, "sched_getaffinity", lambda pid: {4, 1, 2})
+    monkeypatch.delenv("TIDY_PIN_WORKERS", raising=False)
+    assert parallel.core_shares(2) is None  # off unless asked for
+    monkeypatch.setenv("TIDY_PIN_WORKERS", "1")
+    assert parallel.core_shares(2) == [{1}, {2, 4}]
+    assert parallel.core_shares(3) == [{1}, {2}, {4}]
+    assert parallel.core_shares(4) is None  # fewer cores than workers: left to the scheduler
+
+
+@pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="needs 2 cores")
+def test_pool_workers_are_pinned_to_their_own_cores_and_the_parent_is_not(monkeypatch):
+    monkeypatch.setenv("TIDY_PIN_WORKERS", "1")
+    parent = os.sched_getaffinity(0)
+    seen = {tuple(cores) for _, cores in run_jobs(range(6), affinity, workers=2)}
+    assert len(seen) == 2 and all(seen)
+    first, second = (set(c) for c in seen)
+    assert not first & second and first | second <= parent
+    assert os.sched_getaffinity(0) == parent
 
 
 def test_auto_workers_is_a_process_per_core_but_never_more_than_the_jobs(monkeypatch):

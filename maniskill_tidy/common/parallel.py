@@ -28,7 +28,8 @@ MAX_ATTEMPTS = 3  # actors one job may lose before the run stops
 # The thread pools a worker process would otherwise size to every core of the machine: lavapipe's
 # rasteriser (LP_NUM_THREADS), OpenMP (torch's intra-op pool, open3d's loops) and the BLAS
 # libraries. N workers each spreading over all cores fight for them (issue 48).
-# TIDY_AGENT_THREADS: the threads a team's agents think on (``agent_pool``).
+# TIDY_AGENT_THREADS: the threads a team's agents think on (``agent_pool``). TIDY_PIN_WORKERS=1
+# also pins each worker to its own cores (``core_shares``).
 THREAD_KNOBS = (
     "LP_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS",
     "TIDY_AGENT_THREADS",
@@ -66,6 +67,23 @@ def worker_threads(workers: int) -> int:
     """Threads each of ``workers`` local processes may use: its share of this machine's cores."""
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     return max(1, (cores or 1) // max(1, workers))
+
+
+def core_shares(workers: int) -> list[frozenset[int]] | None:
+    """With ``TIDY_PIN_WORKERS=1``, each of ``workers`` local processes' own cores: disjoint
+    slices of this process's cores, as even as they divide (None otherwise, or where there are
+    fewer cores than workers). Off by default: on 2 cores, two workers played 1.61 and 1.70
+    times the episodes of one in steady state pinned against 1.48 and 1.56 unpinned for
+    heuristic-none, but the same for heuristic-broadcast and, within the spread between runs,
+    hangrcom (``scripts/pinning_ab.py``; docs/scaling.md); and a pinned worker cannot use the
+    core its neighbour leaves idle."""
+    if os.environ.get("TIDY_PIN_WORKERS") != "1" or not hasattr(os, "sched_setaffinity"):
+        return None
+    cores = sorted(os.sched_getaffinity(0))
+    n = len(cores)
+    if workers < 1 or n < workers:
+        return None
+    return [frozenset(cores[i * n // workers : (i + 1) * n // workers]) for i in range(workers)]
 
 
 def auto_workers(jobs: int) -> int:
@@ -124,8 +142,10 @@ def thread_budget(threads: int) -> Iterator[None]:
                 os.environ[k] = v
 
 
-def _pool_init(init: Callable | None, initargs: tuple) -> None:
+def _pool_init(init: Callable | None, initargs: tuple, cores=None) -> None:
     die_with_parent()
+    if cores is not None:  # before the worker makes its env and loads its models
+        os.sched_setaffinity(0, cores.get())
     if init is not None:
         init(*initargs)
 
@@ -165,8 +185,14 @@ def run_jobs(
         from multiprocessing import get_context
 
         n = min(workers, len(jobs))
+        context = get_context("spawn")
+        shares, cores = core_shares(n), None
+        if shares is not None:  # each worker takes one share as it starts
+            cores = context.Queue()
+            for share in shares:
+                cores.put(share)
         pool = ProcessPoolExecutor(
-            n, mp_context=get_context("spawn"), initializer=_pool_init, initargs=(init, initargs)
+            n, mp_context=context, initializer=_pool_init, initargs=(init, initargs, cores)
         )
         with pool:
             # the workers start as jobs are submitted: the budget holds for that moment only
