@@ -205,9 +205,12 @@ def test_episodes_free_their_scenes_and_the_last_close_thaws_the_frozen_heap(mon
 
     gc.unfreeze()
     monkeypatch.setattr(hetero_tidy, "_open_envs", 0)  # a module fixture's env may be open
-    e = HeteroTidyEnv(setting="I", split="test", obs_mode="none")
-    other = HeteroTidyEnv(setting="I", split="test", obs_mode="none")
+    envs = []
     try:
+        e = HeteroTidyEnv(setting="I", split="test", obs_mode="none")
+        envs.append(e)
+        other = HeteroTidyEnv(setting="I", split="test", obs_mode="none")
+        envs.append(other)
         assert gc.get_freeze_count() > 0
         scenes = []
         for i in range(4):
@@ -219,8 +222,8 @@ def test_episodes_free_their_scenes_and_the_last_close_thaws_the_frozen_heap(mon
         other.close()  # a second close changes nothing
         assert gc.get_freeze_count() > 0
     finally:
-        other.close()
-        e.close()
+        for env in envs:
+            env.close()
     assert gc.get_freeze_count() == 0
 
 

@@ -76,11 +76,16 @@ def test_pool_workers_get_their_share_of_the_cores_and_the_parent_is_untouched(m
     assert env["LP_NUM_THREADS"] is None
 
 
-def affinity(_job: int) -> list[int]:
-    import os
-    import time
+_meeting = None  # a worker's handle on the barrier both workers' jobs wait at
 
-    time.sleep(0.2)  # every worker starts and takes a job
+
+def join_meeting(barrier) -> None:
+    global _meeting
+    _meeting = barrier
+
+
+def affinity(_job: int) -> list[int]:
+    _meeting.wait(timeout=60)  # the other worker holds the other job: two workers answer
     return sorted(os.sched_getaffinity(0))
 
 
@@ -96,11 +101,18 @@ def test_core_shares_split_the_cores_into_disjoint_slices(monkeypatch):
     assert parallel.core_shares(4) is None  # fewer cores than workers: left to the scheduler
 
 
-@pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="needs 2 cores")
+@pytest.mark.skipif(
+    not hasattr(os, "sched_getaffinity") or len(os.sched_getaffinity(0)) < 2,
+    reason="needs 2 cores and sched_setaffinity",
+)
 def test_pool_workers_are_pinned_to_their_own_cores_and_the_parent_is_not(monkeypatch):
+    from multiprocessing import get_context
+
     monkeypatch.setenv("TIDY_PIN_WORKERS", "1")
     parent = os.sched_getaffinity(0)
-    seen = {tuple(cores) for _, cores in run_jobs(range(6), affinity, workers=2)}
+    barrier = get_context("spawn").Barrier(2)
+    jobs = run_jobs(range(2), affinity, workers=2, init=join_meeting, initargs=(barrier,))
+    seen = {tuple(cores) for _, cores in jobs}
     assert len(seen) == 2 and all(seen)
     first, second = (set(c) for c in seen)
     assert not first & second and first | second <= parent

@@ -72,11 +72,9 @@ def worker_threads(workers: int) -> int:
 def core_shares(workers: int) -> list[frozenset[int]] | None:
     """With ``TIDY_PIN_WORKERS=1``, each of ``workers`` local processes' own cores: disjoint
     slices of this process's cores, as even as they divide (None otherwise, or where there are
-    fewer cores than workers). Off by default: on 2 cores, two workers played 1.61 and 1.70
-    times the episodes of one in steady state pinned against 1.48 and 1.56 unpinned for
-    heuristic-none, but the same for heuristic-broadcast and, within the spread between runs,
-    hangrcom (``scripts/pinning_ab.py``; docs/scaling.md); and a pinned worker cannot use the
-    core its neighbour leaves idle."""
+    fewer cores than workers). Off by default: on 2 cores it gained nothing beyond the spread
+    between runs (``scripts/pinning_ab.py``; docs/scaling.md, Two workers), and a pinned worker
+    cannot use the core its neighbour leaves idle."""
     if os.environ.get("TIDY_PIN_WORKERS") != "1" or not hasattr(os, "sched_setaffinity"):
         return None
     cores = sorted(os.sched_getaffinity(0))
@@ -142,10 +140,11 @@ def thread_budget(threads: int) -> Iterator[None]:
                 os.environ[k] = v
 
 
-def _pool_init(init: Callable | None, initargs: tuple, cores=None) -> None:
+def _pool_init(init: Callable | None, initargs: tuple, shares: Any = None) -> None:
+    """A pool worker's set-up; ``shares``: a queue of core sets, one taken per worker."""
     die_with_parent()
-    if cores is not None:  # before the worker makes its env and loads its models
-        os.sched_setaffinity(0, cores.get())
+    if shares is not None:  # before the worker makes its env and loads its models
+        os.sched_setaffinity(0, shares.get())
     if init is not None:
         init(*initargs)
 
@@ -186,13 +185,13 @@ def run_jobs(
 
         n = min(workers, len(jobs))
         context = get_context("spawn")
-        shares, cores = core_shares(n), None
-        if shares is not None:  # each worker takes one share as it starts
-            cores = context.Queue()
-            for share in shares:
-                cores.put(share)
+        shares = None
+        if (pinned := core_shares(n)) is not None:  # each worker takes one as it starts
+            shares = context.Queue()
+            for share in pinned:
+                shares.put(share)
         pool = ProcessPoolExecutor(
-            n, mp_context=context, initializer=_pool_init, initargs=(init, initargs, cores)
+            n, mp_context=context, initializer=_pool_init, initargs=(init, initargs, shares)
         )
         with pool:
             # the workers start as jobs are submitted: the budget holds for that moment only

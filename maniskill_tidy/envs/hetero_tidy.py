@@ -65,7 +65,6 @@ from maniskill_tidy.tasks.teams import setting_team
 
 QUALITIES = ("fast", "high")
 LOOKS = ("flat", "realistic")  # HeteroTidy-v1, HeteroTidy-v2
-_open_envs = 0  # envs made and not yet closed in this process: the heap stays frozen while any is
 SEG_MAX = 2**15 - 1  # the render shader writes instance ids as int16
 FAR = 30.0  # metres, camera far plane
 LIMIT = 1e4  # bound of poses (m) and camera matrices in the observation space
@@ -86,6 +85,11 @@ def default_render_backend() -> str:
 
 
 gym.registry.pop(ENV_ID, None)  # the lazy entry from maniskill/__init__; register_env adds it
+
+
+# Envs made and not yet closed in this process: the heap stays frozen (see __init__) while
+# any of them is open.
+_open_envs = 0
 
 
 @register_env(ENV_ID, max_episode_steps=None)
@@ -159,13 +163,15 @@ class HeteroTidyEnv(BaseEnv):
         self._holds_freeze = True
 
     def close(self) -> None:
-        super().close()
         global _open_envs
-        if getattr(self, "_holds_freeze", False):  # close() may be called more than once
-            self._holds_freeze = False
-            _open_envs -= 1
-            if _open_envs == 0:
-                gc.unfreeze()
+        try:
+            super().close()
+        finally:
+            if getattr(self, "_holds_freeze", False):  # close() may be called more than once
+                self._holds_freeze = False
+                _open_envs -= 1
+                if _open_envs == 0:
+                    gc.unfreeze()
 
     # ------------------------------------------------------------------ spaces
     @cached_property
