@@ -232,15 +232,21 @@ def test_crop_layout_keeps_obstacles_explored_cells_and_any_object():
     assert layout[0, 0, 0] and layout[1, 1, 1] and layout[2, 2, 2] and layout[3, 3, 2]
 
 
+def _goal_cfg() -> DecisionConfig:
+    """F_g reading the sub-task's target in the crop (layout and goal map)."""
+    catalog = load_catalog()
+    return DecisionConfig(
+        categories=len(catalog.categories), objects=len(catalog.pickupable),
+        receptacles=len(catalog.receptacles), layout=True, goal_map=True,
+    )  # fmt: skip
+
+
 def test_goal_map_points_at_the_subtask_target_object_or_receptacle():
     """The goal channel holds the predicted object's cells while the hands are empty and the
     predicted receptacle's while holding; a type the crop does not hold gives an empty goal."""
     catalog = load_catalog()
     k = len(catalog.categories)
-    cfg = DecisionConfig(
-        categories=k, objects=len(catalog.pickupable), receptacles=len(catalog.receptacles),
-        layout=True, goal_map=True,
-    )  # fmt: skip
+    cfg = _goal_cfg()
     apple, table = catalog.pickupable.index("Apple"), catalog.receptacles.index("DiningTable")
     crop = np.zeros((20, 20, k + 2), bool)
     crop[2, 3, 2 + catalog.category_index("Apple")] = True
@@ -268,10 +274,7 @@ def test_agents_unpacked_goal_maps_give_the_packed_training_rows_bits():
     bit-packed: the goal channel must be the same, bit for bit, on a busy crop."""
     catalog = load_catalog()
     k = len(catalog.categories)
-    cfg = DecisionConfig(
-        categories=k, objects=len(catalog.pickupable), receptacles=len(catalog.receptacles),
-        layout=True, goal_map=True,
-    )  # fmt: skip
+    cfg = _goal_cfg()
     rng = np.random.default_rng(0)
     crop = rng.random((20, 20, k + 2)) < 0.2
     held = torch.tensor([[-1, 3]])
