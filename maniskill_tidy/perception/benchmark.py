@@ -3,7 +3,8 @@
 Agents wander with random navigation actions; each step's three 224x224 frames go through
 ``SemanticMap.update`` (every pixel, and every other one: ``MapConfig(stride=2)``) and, for the
 design comparison in ``semantic_map.py``, through an open3d
-TSDF (``VoxelBlockGrid.integrate`` plus the point extraction a top-down read needs). Env step,
+TSDF (``VoxelBlockGrid.integrate`` plus the point extraction a top-down read needs). The
+map's back-projection kernel is timed against the open3d call it repeats bit for bit. Env step,
 map updates and TSDF alternate frame by frame, so machine load hits all of them alike. The
 learned team's per-frame reads of the map are timed too: the egocentric crop every agent reads,
 and the wide layout only models with ``wide_layout`` read (``FrameReader(wide=...)``).
@@ -20,7 +21,38 @@ import open3d as o3d
 
 from maniskill_tidy.envs.benchmark import NAV_ONLY
 from maniskill_tidy.perception.map_sharing import TeamMaps
-from maniskill_tidy.perception.semantic_map import MapConfig
+from maniskill_tidy.perception.semantic_map import INTO_SURFACE, MapConfig, backproject
+
+
+def open3d_backprojection(depth: np.ndarray, label: np.ndarray, obs: dict, config: MapConfig):
+    """``semantic_map.backproject`` through open3d itself, the kernel's reference: the same
+    five arrays. open3d's parallel loop emits points in any order; each carries its pixel as
+    a colour, which puts them back in row-major order."""
+    h, w = depth.shape
+    k = np.asarray(obs["intrinsics"], dtype=np.float64).copy()
+    k[0, 2] -= 0.5  # open3d puts pixel u at u, the renderer's model at u + 0.5
+    k[1, 2] -= 0.5
+    pushed = np.where(depth > 0, depth + np.float32(INTO_SURFACE), np.float32(0))
+    rows, cols = np.mgrid[0:h, 0:w]
+    pixel = np.ascontiguousarray(np.stack([rows, cols, rows], axis=-1), dtype=np.float32)
+    cloud = o3d.t.geometry.PointCloud.create_from_rgbd_image(
+        o3d.t.geometry.RGBDImage(o3d.t.geometry.Image(pixel), o3d.t.geometry.Image(pushed)),
+        o3d.core.Tensor(k),
+        o3d.core.Tensor(np.asarray(obs["extrinsics"], dtype=np.float64)),
+        depth_scale=1.0,
+        depth_max=config.max_depth,
+        stride=config.stride,
+    )
+    seg = np.asarray(obs["segmentation"])
+    if cloud.is_empty():
+        empty = np.zeros((0, 3)), seg[:0, 0], np.zeros((0, 3)), np.zeros(0, np.uint8)
+        return (*empty, np.zeros((0, 2), np.int64))
+    at = cloud.point.colors.numpy()[:, :2].astype(np.int64)
+    order = np.argsort(at[:, 0] * w + at[:, 1])
+    points, at = cloud.point.positions.numpy()[order], at[order]
+    kept = label[at[:, 0], at[:, 1]] != 0
+    labels = label[at[:, 0], at[:, 1]][kept].astype(np.uint8)
+    return points, seg[at[:, 0], at[:, 1]], points[kept], labels, at[kept]
 
 
 class TSDFMap:
@@ -63,6 +95,7 @@ def bench_map(steps: int = 40, seed: int = 0) -> dict:
         strided = TeamMaps(u.house, u.instances, u.agent_names, MapConfig(stride=2))
         tsdf = {name: TSDFMap(config) for name in u.agent_names}
         env_ms, map_ms, stride_ms, tsdf_ms, crop_ms, wide_ms = [], [], [], [], [], []
+        kernel_ms, o3d_ms = [], []
         for _ in range(steps):
             start = time.perf_counter()
             obs, *_ = env.step({n: int(rng.choice(NAV_ONLY)) for n in u.agent_names})
@@ -83,6 +116,12 @@ def bench_map(steps: int = 40, seed: int = 0) -> dict:
                 strided.maps[name].update(obs[name])
                 strided.maps[name].top_down()
                 stride_ms.append((time.perf_counter() - start) * 1e3)
+                depth = np.ascontiguousarray(obs[name]["depth"], dtype=np.float32)
+                label = m.labels[np.asarray(obs[name]["segmentation"])]
+                for ms, project in ((kernel_ms, backproject), (o3d_ms, open3d_backprojection)):
+                    start = time.perf_counter()
+                    project(depth, label, obs[name], strided.config)
+                    ms.append((time.perf_counter() - start) * 1e3)
                 start = time.perf_counter()
                 tsdf[name].update(obs[name])
                 tsdf[name].read()
@@ -99,6 +138,8 @@ def bench_map(steps: int = 40, seed: int = 0) -> dict:
         "tsdf_ms": statistics.median(tsdf_ms),
         "crop_ms": statistics.median(crop_ms),
         "wide_ms": statistics.median(wide_ms),
+        "kernel_ms": statistics.median(kernel_ms),
+        "open3d_ms": statistics.median(o3d_ms),
         "map_per_env": statistics.median(map_ms) / statistics.median(env_ms),
     }
 
@@ -112,5 +153,8 @@ def report(r: dict) -> str:
         f"{r['stride2_ms']:>12.2f} {r['tsdf_ms']:>8.2f}\n"
         "learned inputs read off the map per agent frame (medians)\n"
         f"{'crop ms':>8} {'wide ms':>8} {'wide/env':>9}\n"
-        f"{r['crop_ms']:>8.2f} {r['wide_ms']:>8.2f} {r['wide_ms'] / r['env_ms']:>9.2f}"
+        f"{r['crop_ms']:>8.2f} {r['wide_ms']:>8.2f} {r['wide_ms'] / r['env_ms']:>9.2f}\n"
+        "back-projection at stride 2 (medians): the map's kernel and open3d's call it repeats\n"
+        f"{'kernel ms':>10} {'open3d ms':>10} {'ratio':>6}\n"
+        f"{r['kernel_ms']:>10.2f} {r['open3d_ms']:>10.2f} {r['open3d_ms'] / r['kernel_ms']:>6.1f}"
     )

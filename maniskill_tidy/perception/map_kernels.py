@@ -22,50 +22,45 @@ _jit = njit(cache=True, nogil=True)
 
 
 @_jit
-def rgbd_inputs(label, depth, colour, into_surface):
-    """open3d's inputs in one pass: the label into the colour buffer's channel 0, and the depth
-    pushed ``into_surface`` (float32) along the optical axis where there is a hit."""
+def backproject(label, depth, seg, pose, intrinsics, into_surface, depth_max, stride):
+    """Every ``stride``-th pixel with a depth as a world point, in row-major pixel order.
+
+    open3d's pinhole unprojection (``t.geometry.PointCloud.create_from_rgbd_image``, CPU)
+    operation for operation in its float32: ``intrinsics`` is (fx, fy, cx, cy) and ``pose``
+    the 3 x 4 camera-to-world matrix, both float32 as open3d holds them, the depth first pushed
+    ``into_surface`` along the optical axis. Returns every point and its segmentation id (for
+    ``last_frame``), and the points, labels and pixels of those the map keeps: label 0
+    (UNKNOWN: robots, the held object) is not mapped."""
     h, w = depth.shape
-    pushed = np.empty((h, w), np.float32)
-    for r in range(h):
-        for c in range(w):
-            colour[r, c, 0] = label[r, c]
-            d = depth[r, c]
-            pushed[r, c] = d + into_surface if d > 0 else np.float32(0)
-    return pushed
-
-
-@_jit
-def ordered_points(colours, positions, seg, labels, width, height):
-    """open3d's points in row-major pixel order (its parallel loop emits them in any order).
-
-    ``colours`` carries (label, row, column) per point. Returns the points and their
-    segmentation ids (every point, for ``last_frame``), and the points, labels and pixels of
-    those the map keeps: label 0 (UNKNOWN: robots, the held object) is not mapped."""
-    n = len(positions)
-    slot = np.full(width * height, -1, np.int64)
-    for i in range(n):
-        slot[np.int64(colours[i, 1]) * width + np.int64(colours[i, 2])] = i
+    n = (h // stride) * (w // stride)
+    fx, fy, cx, cy = intrinsics[0], intrinsics[1], intrinsics[2], intrinsics[3]
     points = np.empty((n, 3), np.float32)
     point_seg = np.empty(n, seg.dtype)
     mapped = np.empty((n, 3), np.float32)
     mapped_pixels = np.empty((n, 2), np.int64)
     mapped_labels = np.empty(n, np.uint8)
     k = m = 0
-    for p in range(width * height):
-        i = slot[p]
-        if i < 0:
-            continue
-        r, c = p // width, p % width
-        points[k] = positions[i]
-        point_seg[k] = seg[r, c]
-        k += 1
-        if labels[r, c] != 0:
-            mapped[m] = positions[i]
-            mapped_pixels[m, 0], mapped_pixels[m, 1] = r, c
-            mapped_labels[m] = labels[r, c]
-            m += 1
-    return points, point_seg, mapped[:m], mapped_labels[:m], mapped_pixels[:m]
+    for r in range(0, (h // stride) * stride, stride):
+        v = np.float32(r)
+        for c in range(0, (w // stride) * stride, stride):
+            d = depth[r, c]
+            if not d > 0:
+                continue
+            d = d + into_surface
+            if not (d > 0 and d < depth_max):
+                continue
+            x = (np.float32(c) - cx) * d / fx
+            y = (v - cy) * d / fy
+            for a in range(3):
+                points[k, a] = x * pose[a, 0] + y * pose[a, 1] + d * pose[a, 2] + pose[a, 3]
+            point_seg[k] = seg[r, c]
+            if label[r, c] != 0:
+                mapped[m] = points[k]
+                mapped_pixels[m, 0], mapped_pixels[m, 1] = r, c
+                mapped_labels[m] = label[r, c]
+                m += 1
+            k += 1
+    return points[:k], point_seg[:k], mapped[:m], mapped_labels[:m], mapped_pixels[:m]
 
 
 @_jit

@@ -1,7 +1,10 @@
 """Top-down semantic maps from RGB-D + segmentation (the paper's Section 5.1 map).
 
-Each frame's depth is back-projected with open3d (camera intrinsics and pose) into world
-points that carry a voxel label read off the segmentation. Points are fused into a dense
+Each frame's depth is back-projected into world points that carry a voxel label read off the
+segmentation, with open3d's pinhole unprojection (camera intrinsics and pose): a numba kernel
+repeats open3d's float32 arithmetic operation for operation, in row-major pixel order, at a
+fifth of the call's cost (``tests/test_semantic_map.py`` checks it against open3d bit for bit
+on rendered frames; ``bench --only map`` times both). Points are fused into a dense
 voxel grid (``cell`` metres on every side, default 0.05 m) that keeps the latest label of
 every voxel; the top-down map of shape (rows, cols, K + 2) is read off that grid:
 
@@ -44,7 +47,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import open3d as o3d
 
 from maniskill_tidy.houses.schema import House
 from maniskill_tidy.knowledge import load_catalog
@@ -107,6 +109,40 @@ def camera_position(extrinsics) -> np.ndarray:
     """The camera's world position from its world-to-camera matrix: -R^T t."""
     ext = np.asarray(extrinsics, dtype=np.float64)
     return -ext[:3, :3].T @ ext[:3, 3]
+
+
+def open3d_intrinsics(intrinsics) -> np.ndarray:
+    """(fx, fy, cx, cy) in float32, as open3d's unprojection holds them. open3d puts pixel u at
+    u, the renderer's model at u + 0.5: the principal point moves half a pixel first."""
+    k = np.asarray(intrinsics, dtype=np.float64)
+    return np.array([k[0, 0], k[1, 1], k[0, 2] - 0.5, k[1, 2] - 0.5], dtype=np.float32)
+
+
+def open3d_pose(extrinsics) -> np.ndarray:
+    """The 3 x 4 camera-to-world matrix as open3d's unprojection computes it from a
+    world-to-camera matrix (``InverseTransformation``: R^T and -R^T t in float64, summed left
+    to right) and holds it (float32)."""
+    ext = np.asarray(extrinsics, dtype=np.float64)
+    rotation = ext[:3, :3].T
+    t = ext[:3, 3]
+    shift = -(rotation[:, 0] * t[0] + rotation[:, 1] * t[1] + rotation[:, 2] * t[2])
+    return np.concatenate([rotation, shift[:, None]], axis=1).astype(np.float32)
+
+
+def backproject(depth: np.ndarray, label: np.ndarray, obs: dict, config: MapConfig):
+    """Every ``config.stride``-th pixel with a depth as a world point: (points, segmentation
+    ids) of all, and (points, labels, pixels) of those a map keeps, in row-major pixel order.
+    ``depth`` is float32, ``label`` the pixels' voxel labels."""
+    # A hit lies on a surface, often exactly on a cell boundary: it is pushed a little along
+    # the optical axis so that it lands in the voxel of the surface it belongs to.
+    all_points, point_seg, points, labels, pixels = kernels.backproject(
+        label, depth, np.asarray(obs["segmentation"]), open3d_pose(obs["extrinsics"]),
+        open3d_intrinsics(obs["intrinsics"]), np.float32(INTO_SURFACE),
+        np.float32(config.max_depth), config.stride,
+    )  # fmt: skip
+    if not len(all_points):  # no depth in view: the empty arrays the map always had
+        return np.zeros((0, 3)), point_seg, np.zeros((0, 3)), labels, np.zeros((0, 2), np.int64)
+    return all_points, point_seg, points, labels, pixels
 
 
 class SemanticMap:
@@ -174,7 +210,9 @@ class SemanticMap:
         self._mark_visible_floor(depth, obs["intrinsics"], obs["extrinsics"], obs.get("pose"))
         # Every pixel with a depth is back-projected once; robots, the held object and empty
         # space (label UNKNOWN) stay out of the map but are kept in ``last_frame``.
-        all_points, point_seg, points, point_labels, pixels = self._backproject(depth, label, obs)
+        all_points, point_seg, points, point_labels, pixels = backproject(
+            depth, label, obs, self.config
+        )
         self.last_frame = FramePoints(
             all_points, point_seg, camera_position(obs["extrinsics"]), self.config.stride
         )
@@ -186,47 +224,6 @@ class SemanticMap:
         touched = self._fuse(points, point_labels, extra, extra_labels)
         self._refresh_columns(np.union1d(touched, cleared) if len(cleared) else touched)
         self.frames += 1
-
-    def _backproject(self, depth: np.ndarray, label: np.ndarray, obs: dict):
-        """Every pixel with a depth as a world point: (points, segmentation ids) of all, and
-        (points, labels, pixels) of those the map keeps, in row-major pixel order."""
-        k = np.asarray(obs["intrinsics"], dtype=np.float64).copy()
-        k[0, 2] -= 0.5  # open3d puts pixel u at u, the renderer's model at u + 0.5
-        k[1, 2] -= 0.5
-        h, w = label.shape
-        colour = self._colour_buffer(h, w)  # label, row, column: carried through as colours
-        # A hit lies on a surface, often exactly on a cell boundary: push it a little along the
-        # optical axis so that it lands in the voxel of the surface it belongs to.
-        depth = kernels.rgbd_inputs(label, depth, colour, np.float32(INTO_SURFACE))
-        rgbd = o3d.t.geometry.RGBDImage(o3d.t.geometry.Image(colour), o3d.t.geometry.Image(depth))
-        cloud = o3d.t.geometry.PointCloud.create_from_rgbd_image(
-            rgbd,
-            o3d.core.Tensor(k),
-            o3d.core.Tensor(np.asarray(obs["extrinsics"], dtype=np.float64)),
-            depth_scale=1.0,
-            depth_max=self.config.max_depth,
-            stride=self.config.stride,
-        )
-        if cloud.is_empty():
-            seg = np.zeros(0, obs["segmentation"].dtype)
-            empty = np.zeros((0, 3)), seg, np.zeros((0, 3)), np.zeros(0, np.uint8)
-            return (*empty, np.zeros((0, 2), np.int64))
-        # open3d emits the points in an order that varies between calls (parallel chunks);
-        # fusion keeps the last label written to a voxel, so fix the order: row-major pixels.
-        return kernels.ordered_points(
-            cloud.point.colors.numpy(), cloud.point.positions.numpy(),
-            np.asarray(obs["segmentation"]), label, w, h,
-        )  # fmt: skip
-
-    def _colour_buffer(self, h: int, w: int) -> np.ndarray:
-        """(h, w, 3) float32 holding every pixel's row and column in channels 1 and 2, made
-        once per image size; channel 0 (the label) is rewritten per frame."""
-        buffer = getattr(self, "_colour", None)
-        if buffer is None or buffer.shape[:2] != (h, w):
-            buffer = np.zeros((h, w, 3), dtype=np.float32)
-            buffer[..., 1], buffer[..., 2] = np.mgrid[0:h, 0:w]
-            self._colour = buffer
-        return buffer
 
     def _fuse(self, points, labels, extra, extra_labels) -> np.ndarray:
         """Write the points' labels into their voxels, the observed points first, then the
