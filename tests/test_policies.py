@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import networkx as nx
 import numpy as np
 import pytest
@@ -11,6 +13,7 @@ from maniskill_tidy.envs.episodes import default_dataset
 from maniskill_tidy.perception.frame_inputs import camera_pitch
 from maniskill_tidy.perception.semantic_map import SemanticMap
 from maniskill_tidy.policies.base import SubTask
+from maniskill_tidy.policies.heuristic_jobs import JobChoice
 from maniskill_tidy.policies.messages import (
     FETCH,
     STATE_DIMS,
@@ -57,6 +60,56 @@ def test_parking_never_cuts_the_free_space():
     for source in sorted(cut)[:5]:
         cell = planner.parking(source, [], [])
         assert cell not in cut and cell in planner.graph
+
+
+def test_move_counts_are_networkxs_breadth_first_search():
+    """The compiled search gives networkx's move counts on the grid graph, cell for cell, with
+    robots in the way (the source itself never blocked) and cells off the grid ignored."""
+    planner = GridPlanner(_house())
+    rng = np.random.default_rng(1)
+    cells = sorted(planner.graph)
+    for _ in range(100):
+        source = cells[rng.integers(len(cells))]
+        blocked = {cells[i] for i in rng.integers(len(cells), size=rng.integers(0, 40))}
+        blocked |= {source, (-1, 0), (0, 10_000)}
+        view = nx.subgraph_view(
+            planner.graph, filter_node=lambda n, b=blocked - {source}: n not in b
+        )
+        want = nx.single_source_shortest_path_length(view, source)
+        got = planner.distances(source, blocked)
+        assert dict(got.items()) == want and len(got) == len(want)
+        assert set(got) == set(want) and all(got[c] == want[c] for c in want)
+        assert (-1, 0) not in got and not any(c in got for c in blocked - {source})
+    with pytest.raises(nx.NodeNotFound):
+        planner.distances((-1, -1))
+
+
+def test_the_search_target_is_the_loop_minimum_over_reachable_cells():
+    """A heuristic agent's next search cell, computed over the grid at once, is the minimum
+    of (moves + 8 x teammates within 5 cells, cell) over the reachable cells it has not
+    searched and does not avoid, as a loop over the move counts finds it."""
+    planner = GridPlanner(_house())
+    rng = np.random.default_rng(2)
+    cells = sorted(planner.graph)
+    for _ in range(100):
+        pick = lambda k: [cells[i] for i in rng.integers(len(cells), size=k)]  # noqa: E731
+        agent = SimpleNamespace(
+            planner=planner, name="agent_0", assignment=None,
+            state=SimpleNamespace(cell=pick(1)[0]),
+            parked={f"p{i}": c for i, c in enumerate(pick(rng.integers(0, 3)))},
+            teammates={f"agent_{i}": (c, 0) for i, c in enumerate(pick(3))},
+            covered=rng.random(planner.free.shape) < rng.random(),
+        )  # fmt: skip
+        avoid = set(pick(rng.integers(0, 10)))
+        dist = planner.distances(agent.state.cell, set(agent.parked.values()))
+        others = [c for n, (c, _) in agent.teammates.items() if n != agent.name]
+        scores = [
+            (d + 8 * sum(abs(o[0] - c[0]) + abs(o[1] - c[1]) < 6 for o in others), c)
+            for c, d in dist.items()
+            if not agent.covered[c] and c not in avoid
+        ]
+        want = min(scores)[1] if scores else None
+        assert JobChoice._search_target(agent, avoid) == want
 
 
 def test_the_nearest_reachable_cell_is_the_minimum_over_the_whole_search():

@@ -169,16 +169,21 @@ class JobChoice:
             cell = self.house.navgrid.cell_of(*self.assignment[2][:2])
             if cell in dist and not self.covered[cell]:
                 return cell
-        others = [c for n, (c, _) in self.teammates.items() if n != self.name]
-        best = None
-        for cell, d in dist.items():
-            if self.covered[cell] or cell in avoid:
-                continue
-            crowd = sum(1 for o in others if abs(o[0] - cell[0]) + abs(o[1] - cell[1]) < 6)
-            score = (d + 8 * crowd, cell)
-            if best is None or score < best:
-                best = score
-        return best[1] if best else None
+        # The minimum of (moves + 8 x teammates within 5 cells, cell) over the reachable cells
+        # not searched and not avoided, computed over the whole grid at once.
+        candidates = (dist.moves >= 0) & ~self.covered
+        for cell in avoid:
+            if cell in dist:
+                candidates[cell] = False
+        rows, cols = np.nonzero(candidates)
+        if not len(rows):
+            return None
+        crowd = np.zeros(len(rows), np.int64)
+        for n, (o, _) in self.teammates.items():
+            if n != self.name:
+                crowd += np.abs(o[0] - rows) + np.abs(o[1] - cols) < 6
+        best = np.lexsort((cols, rows, dist.moves[rows, cols] + 8 * crowd))[0]
+        return int(rows[best]), int(cols[best])
 
     def _seg_of(self, oid: str | None) -> int:
         return next(s for s, inst in self.public.instances.items() if inst.id == oid)
