@@ -473,3 +473,14 @@ def test_the_wide_layout_is_the_share_of_its_samples():
         layout = wide_layout(top_down, frame, pose)
         assert layout.dtype == np.uint8 and np.array_equal(layout, ref)
         assert 128 in layout  # 8 of 16: the tie rounds to even
+
+
+def test_the_map_bench_times_every_row_on_the_same_frames():
+    """``bench --only map``: every row measured on each agent frame of the walk, reported."""
+    from maniskill_tidy.perception.benchmark import bench_map, report
+
+    r = bench_map(steps=2)
+    assert r["frames"] == 2 * 3  # two steps of Setting I's three agents
+    for key in ("env_ms", "map_ms", "stride2_ms", "tsdf_ms", "kernel_ms", "open3d_ms"):
+        assert r[key] > 0, key
+    assert "open3d ms" in report(r)
