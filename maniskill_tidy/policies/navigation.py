@@ -36,16 +36,11 @@ class GridPlanner:
         self.graph = graph
         self.house = house
         self.free = free
-        self._cells = np.array(list(graph), dtype=np.int64).reshape(-1, 2)  # the free cells
-        nodes = [(int(r), int(c)) for r, c in np.argwhere(free)]  # row-major, as free[free]
+        self._cells = np.argwhere(free)  # the free cells, row-major: the graph's node order
         self._node = np.full(free.shape, -1, dtype=np.int64)
-        self._node[free] = np.arange(len(nodes))
+        self._node[free] = np.arange(len(self._cells))
+        nodes = list(map(tuple, self._cells.tolist()))
         self._moves = nx.to_scipy_sparse_array(graph, nodelist=nodes, format="csr", dtype=float)
-        # the slots of the edges into each node, as CSC's indptr would list them
-        self._into = np.argsort(self._moves.indices, kind="stable")
-        self._into_start = np.searchsorted(
-            self._moves.indices[self._into], np.arange(len(nodes) + 1)
-        )
 
     def distances(self, source: Cell, blocked: Iterable[Cell] = ()) -> Distances:
         """Path length in moves from ``source`` to every reachable free cell, avoiding
@@ -53,12 +48,10 @@ class GridPlanner:
         if not self._inside(source) or not self.free[source]:
             raise nx.NodeNotFound(f"Source {source} is not a free cell of the grid")
         weights = self._moves  # one move per edge
-        into = [self._node[c] for c in blocked if c != source and self._inside(c)]
-        into = [v for v in into if v >= 0]
+        into = [self._node[c] for c in blocked if c != source and self._inside(c)]  # -1: a wall
         if into:  # the edges into a robot's cell cost infinity: never settled through
             weights = weights.copy()
-            for v in into:
-                weights.data[self._into[self._into_start[v] : self._into_start[v + 1]]] = np.inf
+            weights.data[np.isin(weights.indices, into)] = np.inf
         moves = dijkstra(weights, indices=self._node[source])
         moves[np.isinf(moves)] = -1
         grid = np.full(self.free.shape, -1, dtype=np.int64)
