@@ -22,6 +22,62 @@ _jit = njit(cache=True, nogil=True)
 
 
 @_jit
+def frame_labels(seg, depth, table, held, unknown):
+    """Each pixel's voxel label (``table[seg]``; ``unknown`` on the held object's pixels) and
+    the depth where it is labelled (0 elsewhere), in one pass. Returns them and the largest
+    id in ``seg``: an id beyond the table is not looked up, and the caller refuses the frame."""
+    h, w = seg.shape
+    label = np.empty((h, w), np.uint8)
+    labelled = np.empty((h, w), np.float32)
+    top = 0
+    for r in range(h):
+        for c in range(w):
+            s = seg[r, c]
+            top = max(top, s)
+            lab = table[s] if s < len(table) and not (held != 0 and s == held) else unknown
+            label[r, c] = lab
+            labelled[r, c] = depth[r, c] if lab != unknown else np.float32(0)
+    return label, labelled, top
+
+
+@_jit
+def view_window(camera, rays, reach, pad, origin, cell, rows, cols):
+    """First and last rows and columns of the box around the camera and the ends of the
+    horizontal ``rays`` (world directions) at ``reach``, ``pad`` wider on every side and
+    clipped to the map (numpy's float64 arithmetic of ``SemanticMap._view_window``)."""
+    lo_x = hi_x = camera[0]
+    lo_y = hi_y = camera[1]
+    for i in range(len(rays)):
+        norm = max(np.sqrt(rays[i, 0] * rays[i, 0] + rays[i, 1] * rays[i, 1]), 1e-9)
+        x = camera[0] + reach * (rays[i, 0] / norm)
+        y = camera[1] + reach * (rays[i, 1] / norm)
+        lo_x, hi_x = min(lo_x, x), max(hi_x, x)
+        lo_y, hi_y = min(lo_y, y), max(hi_y, y)
+    r0 = np.int64(np.floor((lo_y - pad - origin[1]) / cell))
+    r1 = np.int64(np.floor((hi_y + pad - origin[1]) / cell))
+    c0 = np.int64(np.floor((lo_x - pad - origin[0]) / cell))
+    c1 = np.int64(np.floor((hi_x + pad - origin[0]) / cell))
+    r0, r1 = min(max(r0, 0), rows), min(max(r1, 0), rows)
+    return r0, r1, min(max(c0, 0), cols), min(max(c1, 0), cols)
+
+
+@_jit
+def mark_footprint(x, y, pad, radius, origin, cell, explored):
+    """Mark explored the cells whose centre lies within ``radius`` of (x, y), among those of
+    the box ``pad`` around it (clipped to the map, as numpy clipped it)."""
+    rows, cols = explored.shape
+    r0 = min(max(np.int64(np.floor((y - pad - origin[1]) / cell)), 0), rows - 1)
+    r1 = min(max(np.int64(np.floor((y + pad - origin[1]) / cell)), 0), rows - 1)
+    c0 = min(max(np.int64(np.floor((x - pad - origin[0]) / cell)), 0), cols - 1)
+    c1 = min(max(np.int64(np.floor((x + pad - origin[0]) / cell)), 0), cols - 1)
+    for r in range(r0, r1 + 1):
+        cy = origin[1] + (r + 0.5) * cell
+        for c in range(c0, c1 + 1):
+            if np.hypot(origin[0] + (c + 0.5) * cell - x, cy - y) <= radius:
+                explored[r, c] = True
+
+
+@_jit
 def backproject(label, depth, seg, pose, intrinsics, into_surface, depth_max, stride):
     """Every ``stride``-th pixel with a depth as a world point, in row-major pixel order.
 

@@ -198,15 +198,13 @@ class SemanticMap:
                 )
         depth = np.ascontiguousarray(obs["depth"], dtype=np.float32)
         seg = np.asarray(obs["segmentation"])
-        if seg.max(initial=0) >= len(self.labels):
+        held = int(obs.get("held", 0))
+        label, labelled_depth, top = kernels.frame_labels(seg, depth, self.labels, held, UNKNOWN)
+        if top >= len(self.labels):
             raise ValueError(
-                f"segmentation id {int(seg.max())} is not in this map's instance table "
+                f"segmentation id {int(top)} is not in this map's instance table "
                 f"({len(self.labels)} ids): the map belongs to another house"
             )
-        label = self.labels[seg]
-        held = int(obs.get("held", 0))
-        if held:
-            label = np.where(seg == held, UNKNOWN, label)
         self._mark_visible_floor(depth, obs["intrinsics"], obs["extrinsics"], obs.get("pose"))
         # Every pixel with a depth is back-projected once; robots, the held object and empty
         # space (label UNKNOWN) stay out of the map but are kept in ``last_frame``.
@@ -216,7 +214,7 @@ class SemanticMap:
         self.last_frame = FramePoints(
             all_points, point_seg, camera_position(obs["extrinsics"]), self.config.stride
         )
-        depth = np.where(label == UNKNOWN, np.float32(0), depth)
+        depth = labelled_depth  # robots, the held object and empty space: no depth
         cleared = self._clear_seen_through(depth, label, obs["intrinsics"], obs["extrinsics"])
         extra, extra_labels = densify(
             points, point_labels, pixels, seg, depth, self.config.cell, self.config.stride
@@ -253,14 +251,10 @@ class SemanticMap:
             cam, r, c, depth, k, ext, camera[2], reach, FLOOR_HIT, self.explored
         )
         if pose is not None:  # the agent stands there: known, though never in view
-            x, y, pad = float(pose[0]), float(pose[1]), ROBOT_FOOTPRINT + self.config.cell
-            rows, cols = self.frame.cells_of(np.array([[x - pad, y - pad], [x + pad, y + pad]]))
-            rows = np.clip(rows, 0, self.frame.shape[0] - 1)
-            cols = np.clip(cols, 0, self.frame.shape[1] - 1)
-            rr, cc = np.mgrid[rows[0] : rows[1] + 1, cols[0] : cols[1] + 1]
-            xy = self.frame.centres(rr, cc)
-            near = np.hypot(xy[..., 0] - x, xy[..., 1] - y) <= ROBOT_FOOTPRINT
-            self.explored[rr[near], cc[near]] = True
+            kernels.mark_footprint(
+                float(pose[0]), float(pose[1]), ROBOT_FOOTPRINT + self.config.cell,
+                ROBOT_FOOTPRINT, origin, self.frame.cell, self.explored,
+            )  # fmt: skip
 
     def _view_window(self, camera, ext, k, shape, reach) -> tuple[int, int, int, int]:
         """First and last rows and columns of the box around what the camera sees within ``reach``:
@@ -273,15 +267,10 @@ class SemanticMap:
             )
             @ ext[:3, :3]
         )  # camera rays in world coordinates (rows of R^T applied)
-        flat = rays[:, :2] / np.maximum(np.linalg.norm(rays[:, :2], axis=1, keepdims=True), 1e-9)
-        ends = np.vstack([camera[None, :2], camera[:2] + reach * flat])
-        lo = ends.min(axis=0) - 2 * self.config.cell
-        hi = ends.max(axis=0) + 2 * self.config.cell
-        (r0, r1), (c0, c1) = (
-            np.clip(self.frame.cells_of(np.array([lo, hi]))[i], 0, n)
-            for i, n in enumerate(self.frame.shape)
-        )
-        return int(r0), int(r1), int(c0), int(c1)
+        return kernels.view_window(
+            camera, rays, reach, 2 * self.config.cell, np.asarray(self.frame.origin, np.float64),
+            self.frame.cell, *self.frame.shape,
+        )  # fmt: skip
 
     def _clear_seen_through(self, depth, label, intrinsics, extrinsics) -> np.ndarray:
         """Clear stored object voxels the camera now sees past, or sees something else right at
