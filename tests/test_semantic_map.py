@@ -21,6 +21,8 @@ from maniskill_tidy.perception.accuracy import (
 )
 from maniskill_tidy.perception.benchmark import open3d_backprojection
 from maniskill_tidy.perception.crops import egocentric_crop, wide_layout
+from maniskill_tidy.perception.detections import LOW, detect_objects, point_stats, seen_robots
+from maniskill_tidy.perception.frame_inputs import image_boxes
 from maniskill_tidy.perception.frontiers import find_frontiers
 from maniskill_tidy.perception.look_around import look_around
 from maniskill_tidy.perception.map_grid import (
@@ -200,6 +202,87 @@ def box_of(thing) -> tuple:
 def footprint_cells(frame: MapFrame, centre, w: float, d: float, yaw: float, pad: float):
     """Cells within ``pad`` (plus half a cell) of a box."""
     return box_cells(frame, centre, w, d, yaw, frame.cell / 2 + pad + 1e-9)
+
+
+def _bits(x) -> bytes:
+    return np.asarray(x).tobytes()
+
+
+def test_point_stats_are_numpys_median_and_percentile():
+    """One pass over the points gives per id what a mask, ``np.median`` and ``np.percentile``
+    gave: groups of 1 to 80 points (odd and even), with ties, in shuffled order."""
+    rng = np.random.default_rng(0)
+    sizes = rng.integers(1, 80, 400)
+    ids = np.sort(rng.choice(5000, len(sizes), replace=False)) + 1
+    seg = np.repeat(ids, sizes)
+    points = rng.normal(0, 2, (len(seg), 3)).astype(np.float32)
+    # ties; + 0 turns -0.0 into 0.0, as back-projected points never carry -0.0 (one sum of
+    # nonzero products and a translation), so equal values are equal bits
+    points[::3] = np.round(points[::3], 1) + np.float32(0)
+    order = rng.permutation(len(seg))
+    seg, points = (
+        np.concatenate([seg[order], [0, 7000]]),
+        np.vstack([points[order], [[9, 9, 9]] * 2]),
+    )
+    count, median, low = point_stats(seg, points.astype(np.float32), ids, LOW / 100)
+    for i, sid in enumerate(ids):
+        pts = points.astype(np.float32)[seg == sid]
+        assert count[i] == len(pts)
+        assert _bits(median[i]) == _bits(np.median(pts, axis=0))
+        assert _bits(low[i]) == _bits(np.float32(np.percentile(pts[:, 2], LOW)))
+
+
+def test_image_boxes_are_the_extremes_of_each_ids_pixels():
+    rng = np.random.default_rng(1)
+    seg = rng.integers(0, 40, (60, 80)).astype(np.int32)
+    seg[rng.random(seg.shape) < 0.7] = 0  # sparse ids, some absent
+    ids = np.array([3, 7, 12, 39, 45, 400])
+    boxes = image_boxes(seg, ids)
+    for sid, box in zip(ids, boxes, strict=True):
+        rows, cols = np.nonzero(seg == sid)
+        want = [rows.min(), cols.min(), rows.max() + 1, cols.max() + 1] if len(rows) else [0] * 4
+        assert box.tolist() == want
+    assert image_boxes(seg, np.zeros(0, np.int64)).shape == (0, 4)
+
+
+def _masked_detections(frame, instances, kind):
+    """What detections were before ``point_stats``: a mask, np.median and np.percentile."""
+    out = {}
+    ids, counts = np.unique(frame.seg, return_counts=True)
+    for sid, n in zip(ids, counts, strict=True):
+        inst = instances.get(int(sid))
+        if inst is not None and inst.kind == kind and n * frame.stride**2 >= 20:
+            pts = frame.points[frame.seg == sid]
+            out[inst.id] = (np.median(pts, axis=0), float(np.percentile(pts[:, 2], LOW)), len(pts))
+    return out
+
+
+def test_detections_on_rendered_frames_are_the_masked_ones(env):
+    """Objects and robots read off the map's frames: the same positions, lowest points and
+    pixel counts, bit for bit, as per-instance masks and numpy's median and percentile."""
+    objects = robots = 0
+    for episode in (0, 4, 8):
+        obs, _ = env.reset(seed=0, options={"episode": episode})
+        for action in (None, Action.RotateRight, Action.LookDown):
+            if action is not None:
+                obs = env.step({a: int(action) for a in env.agent_names})[0]
+            for frame in obs.values():
+                m = SemanticMap(env.house, env.instances, MapConfig(stride=2))
+                m.update(frame)
+                want = _masked_detections(m.last_frame, env.instances, "object")
+                got = {d.object_id: d for d in detect_objects(m.last_frame, env.instances)}
+                assert got.keys() == want.keys()
+                for oid, (position, bottom, n) in want.items():
+                    d = got[oid]
+                    assert _bits(d.position) == _bits(position) and d.bottom == bottom
+                    assert d.pixels == n * 4
+                    assert d.distance == float(np.linalg.norm(position - m.last_frame.camera))
+                want = _masked_detections(m.last_frame, env.instances, "robot")
+                seen = seen_robots(m.last_frame, env.instances)
+                assert seen.keys() == want.keys()
+                assert all(_bits(seen[r]) == _bits(want[r][0][:2]) for r in seen)
+                objects, robots = objects + len(got), robots + len(seen)
+    assert objects > 10 and robots > 0  # the comparison saw both
 
 
 def object_in_view(u, obs, agent: str, min_distance: float = 0.0):
