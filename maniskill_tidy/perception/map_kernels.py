@@ -209,6 +209,62 @@ def fuse_points(points, extra, labels, extra_labels, voxels, explored, movable, 
 
 
 @_jit
+def object_voxel_centres(flat, voxels, movable, origin, cell, z_cell):
+    """Of the voxels ``flat`` (flat indices), those that still hold a movable object, and their
+    centres in world coordinates (``MapFrame.centres`` and the layer's middle, float64)."""
+    rows, cols, layers = voxels.shape
+    flat_voxels = voxels.reshape(-1)
+    still = np.empty(len(flat), np.int64)
+    world = np.empty((len(flat), 3), np.float64)
+    n = 0
+    for i in range(len(flat)):
+        f = flat[i]
+        if not movable[flat_voxels[f]]:
+            continue
+        r, rest = f // (cols * layers), f % (cols * layers)
+        c, z = rest // layers, rest % layers
+        still[n] = f
+        world[n, 0] = origin[0] + (c + 0.5) * cell
+        world[n, 1] = origin[1] + (r + 0.5) * cell
+        world[n, 2] = (z + 0.5) * z_cell
+        n += 1
+    return still[:n], world[:n]
+
+
+@_jit
+def clear_seen_through(flat, cam, depth, label, voxels, k, cell, see_through, unknown):
+    """Clear the object voxels ``flat`` (centres ``cam`` in camera coordinates) that the frame
+    shows something else at, or sees past by ``see_through``, unless something nearer hides
+    them; returns the voxels kept and the flat columns of those cleared
+    (``SemanticMap._clear_seen_through``'s float64 tests)."""
+    h, w = depth.shape
+    layers = voxels.shape[-1]
+    flat_voxels = voxels.reshape(-1)
+    kept = np.empty(len(flat), np.int64)
+    cleared = np.empty(len(flat), np.int64)
+    n_kept = n_cleared = 0
+    for i in range(len(flat)):
+        z = cam[i, 2]
+        gone = False
+        if z > 1e-6:  # project_points: in front of the camera
+            u = np.int64(np.floor(k[0, 0] * cam[i, 0] / z + k[0, 2]))
+            v = np.int64(np.floor(k[1, 1] * cam[i, 1] / z + k[1, 2]))
+            if 0 <= u < w and 0 <= v < h:
+                measured = np.float64(depth[v, u])
+                other = label[v, u] != flat_voxels[flat[i]]
+                if measured > 0 and measured > z - cell:
+                    gone = z < measured - see_through or other
+        if gone:
+            flat_voxels[flat[i]] = unknown
+            cleared[n_cleared] = flat[i] // layers
+            n_cleared += 1
+        else:
+            kept[n_kept] = flat[i]
+            n_kept += 1
+    return kept[:n_kept], cleared[:n_cleared]
+
+
+@_jit
 def refresh_columns(columns, voxels, top_down, blocks, lo, hi, first_category, first_channel,
                     obstacle):  # fmt: skip
     """Re-read the top-down channels of the given columns off their voxels."""

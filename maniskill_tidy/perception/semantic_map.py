@@ -278,24 +278,19 @@ class SemanticMap:
         flat = self._movable_voxels
         if len(flat) == 0:
             return np.zeros(0, dtype=np.int64)
-        flat = flat[self._movable[self.voxels.reshape(-1)[flat]]]  # still objects
-        r, c, z = np.unravel_index(flat, self.voxels.shape)
-        xy = self.frame.centres(r, c)
-        world = np.column_stack([xy, (z + 0.5) * self.config.cell])
+        flat, world = kernels.object_voxel_centres(
+            flat, self.voxels, self._movable, np.asarray(self.frame.origin, np.float64),
+            self.frame.cell, self.config.cell,
+        )  # fmt: skip
         ext = np.asarray(extrinsics, dtype=np.float64)
-        cam = world @ ext[:3, :3].T + ext[:3, 3]
-        u, v, seen = project_points(cam, np.asarray(intrinsics, dtype=np.float64), depth.shape)
-        measured = np.zeros(len(cam), dtype=np.float64)
-        measured[seen] = depth[v[seen], u[seen]]
-        other = np.zeros(len(cam), dtype=bool)
-        other[seen] = label[v[seen], u[seen]] != self.voxels.reshape(-1)[flat[seen]]
+        cam = world @ ext[:3, :3].T + ext[:3, 3]  # numpy's matmul: the kernels do no BLAS
         # Not hidden behind something nearer, and either seen through by SEE_THROUGH or seen
         # to be another thing at its own depth (the table a flat object lay on).
-        visible = seen & (measured > 0) & (measured > cam[:, 2] - self.config.cell)
-        gone = visible & ((cam[:, 2] < measured - SEE_THROUGH) | other)
-        self.voxels.reshape(-1)[flat[gone]] = UNKNOWN
-        self._movable_voxels = flat[~gone]
-        return flat[gone] // self.layers
+        self._movable_voxels, cleared = kernels.clear_seen_through(
+            flat, cam, depth, label, self.voxels, np.asarray(intrinsics, dtype=np.float64),
+            self.config.cell, SEE_THROUGH, UNKNOWN,
+        )  # fmt: skip
+        return cleared
 
     def _refresh_columns(self, columns: np.ndarray) -> None:
         """Re-read the top-down channels of the (unique) columns whose voxels changed."""
