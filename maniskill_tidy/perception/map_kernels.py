@@ -120,11 +120,16 @@ def backproject(label, depth, seg, pose, intrinsics, into_surface, depth_max, st
 
 
 @_jit
-def densify_pairs(index, seg, depth, points, cell, min_step, max_gap):
-    """Vertically adjacent pixels (a above b) of one instance whose 3-D gap needs filling:
-    their point indices and the number of segments of the gap, in row-major order of a.
-    ``cell``, ``min_step`` and ``max_gap`` are float32, as numpy compared them."""
-    rows, cols = index.shape
+def densify_pairs(pixels, stride, seg, depth, points, cell, min_step, max_gap):
+    """Vertically adjacent pixels (a above b) of every ``stride``-th row and column, of one
+    instance, whose 3-D gap needs filling: their point indices (``pixels`` holds each point's)
+    and the number of segments of the gap, in row-major order of a. ``cell``, ``min_step`` and
+    ``max_gap`` are float32, as numpy compared them."""
+    h, w = seg.shape
+    rows, cols = (h + stride - 1) // stride, (w + stride - 1) // stride
+    index = np.full((rows, cols), -1, np.int64)  # the point at each strided pixel
+    for i in range(len(pixels)):
+        index[pixels[i, 0] // stride, pixels[i, 1] // stride] = i
     a_out = np.empty(rows * cols, np.int64)
     b_out = np.empty(rows * cols, np.int64)
     n_out = np.empty(rows * cols, np.int64)
@@ -132,9 +137,10 @@ def densify_pairs(index, seg, depth, points, cell, min_step, max_gap):
     for r in range(rows - 1):
         for c in range(cols):
             a, b = index[r, c], index[r + 1, c]
-            if a < 0 or b < 0 or seg[r, c] != seg[r + 1, c]:
+            above, below = r * stride, (r + 1) * stride
+            if a < 0 or b < 0 or seg[above, c * stride] != seg[below, c * stride]:
                 continue
-            if not abs(depth[r, c] - depth[r + 1, c]) > min_step:
+            if not abs(depth[above, c * stride] - depth[below, c * stride]) > min_step:
                 continue
             dx = points[a, 0] - points[b, 0]
             dy = points[a, 1] - points[b, 1]

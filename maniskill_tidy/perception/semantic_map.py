@@ -375,13 +375,10 @@ def densify(
     is visible) but free. Gaps wider than ``MAX_GAP`` are left alone: they cross an edge."""
     if len(points) == 0:
         return np.zeros((0, 3)), labels[:0]
-    v, u = pixels[:, 0] // stride, pixels[:, 1] // stride
-    index = np.full(seg[::stride, ::stride].shape, -1, dtype=np.int64)
-    index[v, u] = np.arange(len(points))
     # A pixel and the one below it both hit one instance and their depths differ by more
     # than a neighbour's gap can without one (3.5 cm at 5 m), their points by over a cell.
     a, b, n = kernels.densify_pairs(
-        index, seg[::stride, ::stride], depth[::stride, ::stride], points,
+        pixels, stride, seg, depth, points,
         np.float32(cell), np.float32(MIN_STEP), np.float32(MAX_GAP),
     )  # fmt: skip
     return kernels.fill_gaps(points, labels, a, b, n)
