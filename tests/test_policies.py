@@ -224,3 +224,16 @@ def test_the_cells_seen_close_up_are_those_numpy_marked():
         origin = np.asarray(nav.origin, np.float32)
         mark_near_cells(points, camera, COVER_RANGE, origin, np.float32(nav.cell), got)
         assert np.array_equal(got, want) and 0 < got.sum() < got.size
+    # one point at a time on the range's border, where the kernel's shortcuts (the square and
+    # the diamond around the camera) must give way to np.hypot: near the axes and diagonals
+    camera = np.array([0.3, 0.4, 1.0])
+    angles = np.arange(8)[:, None] * np.pi / 4 + np.array([0, 1e-4, -1e-3, 0.05])
+    radii = COVER_RANGE * (1 + np.array([-1e-4, -1e-7, 0, 1e-7, 1e-4]))
+    grid = SimpleNamespace(origin=np.float32([-5, -5]), cell=np.float32(0.25), shape=(40, 40))
+    for angle in angles.ravel():
+        for radius in radii:
+            point = camera[:2] + radius * np.array([np.cos(angle), np.sin(angle)])
+            point = np.float32([[*point, 0.5]])
+            got = np.zeros(grid.shape, dtype=bool)
+            mark_near_cells(point, camera, COVER_RANGE, grid.origin, grid.cell, got)
+            assert got.any() == (np.hypot(*(point[0, :2] - camera[:2])) < COVER_RANGE)

@@ -407,10 +407,16 @@ def mark_near_cells(points, camera, reach, origin, cell, grid):
     within ``reach`` of ``camera`` (horizontally). numpy took the distance in float64 and the
     cell in the points' dtype (``origin`` and ``cell`` come in it)."""
     rows, cols = grid.shape
+    # max(|dx|, |dy|) <= hypot <= |dx| + |dy|: points well outside the square of side 2 reach, or
+    # well inside the diamond, are settled without np.hypot (most of its cost); the margins
+    # (a billionth of reach) cover the last bits of rounding, so the outcome is np.hypot's
+    outside, inside = reach * (1 + 1e-9), reach * (1 - 1e-9)
     for i in range(len(points)):
         dx = np.float64(points[i, 0]) - camera[0]
         dy = np.float64(points[i, 1]) - camera[1]
-        if not np.hypot(dx, dy) < reach:
+        if abs(dx) >= outside or abs(dy) >= outside:
+            continue
+        if not abs(dx) + abs(dy) < inside and not np.hypot(dx, dy) < reach:
             continue
         c = np.int64(np.floor((points[i, 0] - origin[0]) / cell))
         r = np.int64(np.floor((points[i, 1] - origin[1]) / cell))
