@@ -20,8 +20,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
+from numba import njit
 
 from maniskill_tidy.knowledge import ROOM_TYPES, load_catalog
 from maniskill_tidy.perception.map_grid import EXPLORED, FIRST_CATEGORY, FIRST_CHANNEL, OBSTACLE
@@ -80,9 +82,39 @@ def decode_state(v: np.ndarray) -> State:
 
 
 # ---------------------------------------------------------------------- map crop
-def _small_first(categories: tuple[str, ...]) -> np.ndarray:
+@lru_cache(maxsize=4)
+def _small(categories: tuple[str, ...]) -> np.ndarray:
+    """Per category, whether it is a small (pickupable) object's."""
     small = set(load_catalog().pickupable)
-    return np.array([2.0 if c in small else 1.0 for c in categories])
+    return np.array([c in small for c in categories])
+
+
+def crop_labels(crop: np.ndarray, categories: tuple[str, ...]) -> np.ndarray:
+    """A 0/1 crop (G, G, K + 2) folded into one float32 label per cell: ``3 + k`` for its first
+    small-object category k, else its first category; else 2 for an obstacle, 1 explored, 0."""
+    return _fold(crop, _small(categories), FIRST_CHANNEL, FIRST_CATEGORY, OBSTACLE, EXPLORED)
+
+
+@njit(cache=True, nogil=True)
+def _fold(crop, small, first_channel, first_category, obstacle, explored):
+    """:func:`crop_labels` in one pass over the crop (numpy's dozen passes cost 0.15 ms)."""
+    rows, cols, _ = crop.shape
+    out = np.zeros((rows, cols), np.float32)
+    for r in range(rows):
+        for c in range(cols):
+            best = -1
+            for k in range(len(small)):
+                if crop[r, c, first_channel + k] > 0 and (best < 0 or small[k] and not small[best]):
+                    best = k
+                    if small[k]:
+                        break  # the first small-object category wins
+            if best >= 0:
+                out[r, c] = first_category + best
+            elif crop[r, c, obstacle] > 0:
+                out[r, c] = OBSTACLE_CODE
+            elif crop[r, c, explored] > 0:
+                out[r, c] = FREE_CODE
+    return out
 
 
 def crop_cell_centres(pose, size: int, cell: float) -> np.ndarray:
@@ -90,25 +122,29 @@ def crop_cell_centres(pose, size: int, cell: float) -> np.ndarray:
     row 0 furthest ahead, column 0 on the left, the agent in the middle)."""
     x, y, rotation = (float(v) for v in pose)
     yaw = math.radians(rotation)
-    fwd = np.array([math.cos(yaw), math.sin(yaw)])
-    right = np.array([math.sin(yaw), -math.cos(yaw)])
-    offsets = (np.arange(size) + 0.5 - size / 2) * cell
-    ahead, side = np.meshgrid(-offsets, offsets, indexing="ij")
-    return np.array([x, y]) + ahead[..., None] * fwd + side[..., None] * right
+    return _centres(x, y, math.cos(yaw), math.sin(yaw), size, cell)
+
+
+@njit(cache=True, nogil=True)
+def _centres(x, y, cos, sin, size, cell):
+    """:func:`crop_cell_centres` as numpy computed it from a meshgrid: (x, y) + ahead * forward
+    + side * right in float64, left to right."""
+    out = np.empty((size, size, 2), np.float64)
+    for i in range(size):
+        ahead = -((i + 0.5 - size / 2) * cell)
+        for j in range(size):
+            side = (j + 0.5 - size / 2) * cell
+            out[i, j, 0] = (x + ahead * cos) + side * sin
+            out[i, j, 1] = (y + ahead * sin) + side * -cos
+    return out
 
 
 def encode_crop(
     semantic_map: SemanticMap, pose, misplaced: list[tuple[str, np.ndarray]]
 ) -> np.ndarray:
     """The sender's crop as ``G x G`` labels; ``misplaced``: (type, position) it judges so."""
-    crop = semantic_map.local_crop(pose)
     cfg = semantic_map.config
-    cats = crop[..., FIRST_CHANNEL:].astype(np.float32) * _small_first(semantic_map.categories)
-    labels = np.where(
-        cats.max(axis=-1) > 0,
-        FIRST_CATEGORY + cats.argmax(axis=-1),
-        np.where(crop[..., OBSTACLE] > 0, OBSTACLE_CODE, np.where(crop[..., EXPLORED] > 0, 1, 0)),
-    ).astype(np.float32)
+    labels = crop_labels(semantic_map.local_crop(pose), tuple(semantic_map.categories))
     if misplaced:
         centres = crop_cell_centres(pose, cfg.crop_size, cfg.crop_cell).reshape(-1, 2)
         index = {c: i for i, c in enumerate(semantic_map.categories)}
