@@ -8,6 +8,15 @@ REFERENCE = Path(__file__).resolve().parents[2] / "shared" / "reference"
 DATA = Path(__file__).parent / "data"
 
 
+def taken_action(agent, action):
+    """The Action an env agent's (possibly targeted) action is, after the env's own check
+    (``parse_action`` raises on one the agent cannot take)."""
+    from maniskill_tidy.envs.actions import Action, Targeted, parse_action
+
+    parse_action(action, agent.n_actions, agent.name)
+    return action.action if isinstance(action, Targeted) else Action(int(action))
+
+
 @pytest.fixture(scope="session")
 def small_dataset(tmp_path_factory) -> Path:
     """12 houses (8/2/2), seed 3: shared by tests that only read it."""

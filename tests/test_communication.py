@@ -19,6 +19,7 @@ from maniskill_tidy.policies import make_team
 from maniskill_tidy.policies.agent_config import AgentConfig
 from maniskill_tidy.policies.channel import CENTRAL, Channel, Outbox
 from maniskill_tidy.policies.message_exchange import LearnedCentral, MessageExchange
+from tests.conftest import taken_action
 
 N = 3
 MESSAGE = {"broadcast": 410, "cond": 410, "cmpr": 110, "inten": 10}
@@ -150,13 +151,11 @@ class Traffic:
         self.env, self.steps, self.illegal = env, [], []
 
     def decided(self, t, actions, labels) -> None:
-        from maniskill_tidy.envs.actions import Action, Targeted, parse_action
+        from maniskill_tidy.envs.actions import Action
 
         for a in self.env.agents:
             if a.name in actions:
-                parse_action(actions[a.name], a.n_actions, a.name)  # raises if illegal
-                act = actions[a.name]
-                act = act.action if isinstance(act, Targeted) else Action(int(act))
+                act = taken_action(a, actions[a.name])
                 if not a.manipulator and act >= Action.PickUp:
                     self.illegal.append((t, a.name, act))
         self.active = sorted(actions)

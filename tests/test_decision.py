@@ -34,6 +34,7 @@ from maniskill_tidy.training.decision_data import (
 from maniskill_tidy.training.decision_features import embed_split
 from maniskill_tidy.training.decision_metrics import evaluate, selection_score
 from maniskill_tidy.training.decision_trainer import fit
+from tests.conftest import taken_action
 
 DEMOS = DemoConfig(setting="I", split="train", starts=1, tasks=1, houses=1)
 PERCEPTION = Path(__file__).resolve().parents[1] / "agents" / "perception" / "knowledge"
@@ -446,13 +447,9 @@ class Legal:
         self.env, self.actions = env, 0
 
     def decided(self, t, actions, labels) -> None:
-        from maniskill_tidy.envs.actions import Targeted, parse_action
-
         for a in self.env.agents:
             if a.name in actions:
-                parse_action(actions[a.name], a.n_actions, a.name)  # raises if illegal
-                act = actions[a.name]
-                act = act.action if isinstance(act, Targeted) else Action(int(act))
+                act = taken_action(a, actions[a.name])
                 assert a.manipulator or act < Action.PickUp, (a.name, act)
                 assert a.name in labels  # it says which sub-task and sub-goal it pursues
                 self.actions += 1
