@@ -39,7 +39,6 @@ from maniskill_tidy.perception.semantic_map import (
     MapConfig,
     SemanticMap,
     backproject,
-    project_points,
 )
 from maniskill_tidy.policies.channel import Channel
 
@@ -305,6 +304,16 @@ def find_view_of_an_object(u, agent: str, min_distance: float = 0.0):
         if sid is not None:
             return obs, sid, inst
     pytest.fail("no start view with an object in the first 20 test episodes")
+
+
+def project_points(cam: np.ndarray, k: np.ndarray, shape: tuple[int, int]):
+    """Pixel (u, v) of camera-frame points and whether it lies in the image, in front."""
+    h, w = shape
+    ahead = cam[:, 2] > 1e-6
+    z = np.where(ahead, cam[:, 2], 1.0)
+    u = np.floor(k[0, 0] * cam[:, 0] / z + k[0, 2]).astype(np.int64)
+    v = np.floor(k[1, 1] * cam[:, 1] / z + k[1, 2]).astype(np.int64)
+    return u, v, ahead & (u >= 0) & (u < w) & (v >= 0) & (v < h)
 
 
 def test_an_object_that_moves_away_is_cleared_from_the_map(env):

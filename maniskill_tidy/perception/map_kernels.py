@@ -22,6 +22,14 @@ _jit = njit(cache=True, nogil=True)
 
 
 @_jit
+def pixel_of(k, x, y, z):
+    """The pixel (u, v) a camera-frame point in front of the camera (z > 0) falls on."""
+    u = np.int64(np.floor(k[0, 0] * x / z + k[0, 2]))
+    v = np.int64(np.floor(k[1, 1] * y / z + k[1, 2]))
+    return u, v
+
+
+@_jit
 def frame_labels(seg, depth, table, held, unknown):
     """Each pixel's voxel label (``table[seg]``; ``unknown`` on the held object's pixels) and
     the depth where it is labelled (0 elsewhere), in one pass. Returns them and the largest
@@ -252,9 +260,8 @@ def clear_seen_through(flat, cam, depth, label, voxels, k, cell, see_through, un
     for i in range(len(flat)):
         z = cam[i, 2]
         gone = False
-        if z > 1e-6:  # project_points: in front of the camera
-            u = np.int64(np.floor(k[0, 0] * cam[i, 0] / z + k[0, 2]))
-            v = np.int64(np.floor(k[1, 1] * cam[i, 1] / z + k[1, 2]))
+        if z > 1e-6:  # in front of the camera
+            u, v = pixel_of(k, cam[i, 0], cam[i, 1], z)
             if 0 <= u < w and 0 <= v < h:
                 measured = np.float64(depth[v, u])
                 other = label[v, u] != flat_voxels[flat[i]]
@@ -317,10 +324,9 @@ def mark_floor_seen(cam, rows, cols, depth, k, ext, camera_z, reach, floor_hit, 
     h, w = depth.shape
     for i in range(len(cam)):
         z = cam[i, 2]
-        if not z > 1e-6:  # project_points: behind the camera
+        if not z > 1e-6:  # behind the camera
             continue
-        u = np.int64(np.floor(k[0, 0] * cam[i, 0] / z + k[0, 2]))
-        v = np.int64(np.floor(k[1, 1] * cam[i, 1] / z + k[1, 2]))
+        u, v = pixel_of(k, cam[i, 0], cam[i, 1], z)
         if u < 0 or u >= w or v < 0 or v >= h or not z <= reach:
             continue
         d = np.float64(depth[v, u])

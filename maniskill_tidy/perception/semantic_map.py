@@ -161,6 +161,7 @@ class SemanticMap:
         if len(self.categories) + FIRST_CATEGORY > 255:
             raise ValueError(f"{len(self.categories)} categories do not fit uint8 voxel labels")
         self.frame = MapFrame.of_house(house, self.config.cell)
+        self._origin = np.asarray(self.frame.origin, dtype=np.float64)  # for the kernels
         self.planner_shape = tuple(house.navgrid.shape)
         self.labels = label_table(instances, self.categories)
         small = set(catalog.pickupable)
@@ -244,8 +245,9 @@ class SemanticMap:
         camera = camera_position(ext)
         reach = self.config.max_depth
         r0, r1, c0, c1 = self._view_window(camera, ext, k, depth.shape, reach)
-        origin = np.asarray(self.frame.origin, dtype=np.float64)
-        r, c, xyz = kernels.unexplored_cells(r0, r1, c0, c1, self.explored, origin, self.frame.cell)
+        r, c, xyz = kernels.unexplored_cells(
+            r0, r1, c0, c1, self.explored, self._origin, self.frame.cell
+        )
         cam = xyz @ ext[:3, :3].T + ext[:3, 3]  # numpy's matmul: the kernels do no BLAS
         kernels.mark_floor_seen(
             cam, r, c, depth, k, ext, camera[2], reach, FLOOR_HIT, self.explored
@@ -253,7 +255,7 @@ class SemanticMap:
         if pose is not None:  # the agent stands there: known, though never in view
             kernels.mark_footprint(
                 float(pose[0]), float(pose[1]), ROBOT_FOOTPRINT + self.config.cell,
-                ROBOT_FOOTPRINT, origin, self.frame.cell, self.explored,
+                ROBOT_FOOTPRINT, self._origin, self.frame.cell, self.explored,
             )  # fmt: skip
 
     def _view_window(self, camera, ext, k, shape, reach) -> tuple[int, int, int, int]:
@@ -268,8 +270,8 @@ class SemanticMap:
             @ ext[:3, :3]
         )  # camera rays in world coordinates (rows of R^T applied)
         return kernels.view_window(
-            camera, rays, reach, 2 * self.config.cell, np.asarray(self.frame.origin, np.float64),
-            self.frame.cell, *self.frame.shape,
+            camera, rays, reach, 2 * self.config.cell, self._origin, self.frame.cell,
+            *self.frame.shape,
         )  # fmt: skip
 
     def _clear_seen_through(self, depth, label, intrinsics, extrinsics) -> np.ndarray:
@@ -279,8 +281,7 @@ class SemanticMap:
         if len(flat) == 0:
             return np.zeros(0, dtype=np.int64)
         flat, world = kernels.object_voxel_centres(
-            flat, self.voxels, self._movable, np.asarray(self.frame.origin, np.float64),
-            self.frame.cell, self.config.cell,
+            flat, self.voxels, self._movable, self._origin, self.frame.cell, self.config.cell,
         )  # fmt: skip
         ext = np.asarray(extrinsics, dtype=np.float64)
         cam = world @ ext[:3, :3].T + ext[:3, 3]  # numpy's matmul: the kernels do no BLAS
@@ -382,13 +383,3 @@ def densify(
         np.float32(cell), np.float32(MIN_STEP), np.float32(MAX_GAP),
     )  # fmt: skip
     return kernels.fill_gaps(points, labels, a, b, n)
-
-
-def project_points(cam: np.ndarray, k: np.ndarray, shape: tuple[int, int]):
-    """Pixel (u, v) of camera-frame points and whether it lies in the image, in front."""
-    h, w = shape
-    ahead = cam[:, 2] > 1e-6
-    z = np.where(ahead, cam[:, 2], 1.0)
-    u = np.floor(k[0, 0] * cam[:, 0] / z + k[0, 2]).astype(np.int64)
-    v = np.floor(k[1, 1] * cam[:, 1] / z + k[1, 2]).astype(np.int64)
-    return u, v, ahead & (u >= 0) & (u < w) & (v >= 0) & (v < h)

@@ -97,17 +97,19 @@ def crop_labels(crop: np.ndarray, categories: tuple[str, ...]) -> np.ndarray:
 
 @njit(cache=True, nogil=True)
 def _fold(crop, small, first_channel, first_category, obstacle, explored):
-    """:func:`crop_labels` in one pass over the crop (numpy's dozen passes cost 0.15 ms)."""
+    """:func:`crop_labels` in one pass over the crop, not a dozen numpy passes."""
     rows, cols, _ = crop.shape
     out = np.zeros((rows, cols), np.float32)
     for r in range(rows):
         for c in range(cols):
-            best = -1
+            best = -1  # the first category present, until a small-object one is found
             for k in range(len(small)):
-                if crop[r, c, first_channel + k] > 0 and (best < 0 or small[k] and not small[best]):
-                    best = k
+                if crop[r, c, first_channel + k] > 0:
                     if small[k]:
-                        break  # the first small-object category wins
+                        best = k
+                        break
+                    if best < 0:
+                        best = k
             if best >= 0:
                 out[r, c] = first_category + best
             elif crop[r, c, obstacle] > 0:
