@@ -177,32 +177,6 @@ def test_a_map_crop_is_400_values_and_lands_where_the_sender_saw_it(rotation):
     assert (cells.explored[0][0], cells.explored[1][0]) == nav.cell_of(*xy)
 
 
-def test_a_crops_labels_put_small_objects_first_as_the_weighted_argmax_did():
-    """The fold of a crop's channels into labels, against the weighted argmax it replaced
-    (small-object categories weighted 2, the others 1, the first maximum wins)."""
-    from maniskill_tidy.knowledge import load_catalog
-    from maniskill_tidy.perception.map_grid import EXPLORED, FIRST_CATEGORY, FIRST_CHANNEL, OBSTACLE
-    from maniskill_tidy.policies.messages import crop_labels
-
-    categories = load_catalog().categories
-    small = set(load_catalog().pickupable)
-    weights = np.array([2.0 if c in small else 1.0 for c in categories])
-    rng = np.random.default_rng(3)
-    for density in (0.0, 0.002, 0.02, 0.2):
-        crop = (rng.random((20, 20, len(categories) + 2)) < density).astype(np.uint8)
-        crop[..., OBSTACLE] = rng.random((20, 20)) < 0.3
-        crop[..., EXPLORED] = rng.random((20, 20)) < 0.6
-        cats = crop[..., FIRST_CHANNEL:].astype(np.float32) * weights
-        want = np.where(
-            cats.max(axis=-1) > 0,
-            FIRST_CATEGORY + cats.argmax(axis=-1),
-            np.where(crop[..., OBSTACLE] > 0, 2, np.where(crop[..., EXPLORED] > 0, 1, 0)),
-        ).astype(np.float32)
-        got = crop_labels(crop, categories)
-        assert got.dtype == np.float32 and np.array_equal(got, want)
-        assert density == 0.0 or (got >= FIRST_CATEGORY).any()
-
-
 def test_crop_cell_centres_are_the_meshgrids():
     """The crop's cell centres, against the numpy meshgrid arithmetic they replaced, bit for
     bit (where a message's misplaced objects and explored cells land)."""

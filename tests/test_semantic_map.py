@@ -393,6 +393,54 @@ def test_the_wide_layout_gives_shares_of_the_whole_map_turned_with_the_agent(rot
     assert wide_layout(td, frame, (10.0, 10.0, 0))[..., EXPLORED][9, 0] == 128
 
 
+def weighted_argmax_labels(crop: np.ndarray, small: np.ndarray) -> np.ndarray:
+    """A crop's labels as the numpy fold the map messages first used: small-object categories
+    weighted 2, the others 1, the first maximum wins; else obstacle 2, explored 1, unknown 0."""
+    cats = crop[..., FIRST_CHANNEL:].astype(np.float32) * np.where(small, 2.0, 1.0)
+    return np.where(
+        cats.max(axis=-1) > 0,
+        FIRST_CATEGORY + cats.argmax(axis=-1),
+        np.where(crop[..., OBSTACLE] > 0, 2, np.where(crop[..., EXPLORED] > 0, 1, 0)),
+    ).astype(np.float32)
+
+
+def test_label_crops_are_the_folded_channel_crops(env, surveys):
+    """The label crop read off the map's per-column ranks, against the channel crop folded as
+    before, on random voxel grids (every mix of categories, floor, walls and explored cells in a
+    column) and on the surveys' maps, in poses all over the house and past its edges."""
+    from maniskill_tidy.knowledge import load_catalog
+
+    rng = np.random.default_rng(5)
+    categories = SemanticMap(env.house, {}).categories
+    k, pickupable = len(categories), set(load_catalog().pickupable)
+    small = np.array([c in pickupable for c in categories])
+    assert small.any() and not small.all()
+
+    def agree(semantic: SemanticMap) -> np.ndarray:
+        (x0, y0), (rows, cols) = semantic.frame.origin, semantic.frame.shape
+        cell, labels = semantic.frame.cell, []
+        for _ in range(8):
+            x, y = rng.uniform(-1, cols * cell + 1) + x0, rng.uniform(-1, rows * cell + 1) + y0
+            pose = (x, y, int(rng.choice([0, 90, 180, 270])))
+            want = weighted_argmax_labels(semantic.local_crop(pose), small)
+            got = semantic.label_crop(pose)
+            assert got.dtype == np.float32 and np.array_equal(got, want)
+            labels.append(got)
+        return np.concatenate(labels)
+
+    for density in (0.001, 0.01, 0.1):
+        random = SemanticMap(env.house, {})
+        shape = random.voxels.shape
+        labels = rng.integers(0, FIRST_CATEGORY + k, shape, dtype=np.uint8)
+        random.voxels[...] = np.where(rng.random(shape) < density, labels, 0)
+        random.explored[...] = rng.random(shape[:2]) < 0.5
+        random._refresh_columns(np.arange(shape[0] * shape[1]))
+        got = agree(random)
+        assert len(np.unique(got)) > 3  # several categories, beside the other labels
+    got = np.concatenate([agree(m) for m, _ in surveys.values()])
+    assert all((got == code).any() for code in (0, 1, 2)) and (got >= FIRST_CATEGORY).any()
+
+
 def test_crop_cells_outside_the_map_are_zero():
     td = np.ones((100, 100, 3), dtype=np.uint8)
     # an agent 0.1 m from the map's west edge, facing west: ahead of it is off the map

@@ -1,5 +1,6 @@
-"""What the decision modules read of a map: the egocentric crop (the paper's G x G), the
-coarse wide layout, and the planner grid pooled from the map."""
+"""What the decision modules read of a map: the egocentric crop (the paper's G x G), the same
+crop folded into one label per cell (what a map message carries), the coarse wide layout, and
+the planner grid pooled from the map."""
 
 from __future__ import annotations
 
@@ -7,8 +8,21 @@ import math
 
 import numpy as np
 
-from maniskill_tidy.perception.map_grid import EXPLORED, FIRST_CHANNEL, OBSTACLE, MapFrame
-from maniskill_tidy.perception.map_kernels import egocentric_cells, pooled_samples, sample_shares
+from maniskill_tidy.perception.map_grid import (
+    EXPLORED,
+    FIRST_CATEGORY,
+    FIRST_CHANNEL,
+    OBSTACLE,
+    MapFrame,
+)
+from maniskill_tidy.perception.map_kernels import (
+    egocentric_cells,
+    pooled_ranks,
+    pooled_samples,
+    sample_shares,
+)
+
+UNKNOWN_CODE, FREE_CODE, OBSTACLE_CODE = 0, 1, 2  # crop labels; category k is FIRST_CATEGORY + k
 
 
 def pool_to_planner(top_down: np.ndarray, planner_shape: tuple[int, int]) -> np.ndarray:
@@ -34,6 +48,50 @@ def egocentric_crop(
     sub = max(int(round(cell / frame.cell)), 1)
     rows, cols = _egocentric_cells(frame, pose, size, cell, sub)
     return pooled_samples(top_down, rows, cols, size, sub)
+
+
+class LabelRanks:
+    """Which label a crop cell gets when its samples hold several: small (pickupable) objects
+    first, in catalog order, then the other categories, an obstacle, explored free, unknown.
+
+    A column's rank is the lowest of its labels' (the map keeps one per column as it refreshes
+    columns), and a crop cell's the lowest of its samples'. That is the label the crop's
+    channels, max-pooled and then folded in this order, give: the order is total, so the best
+    of the union is the best of the bests.
+    """
+
+    def __init__(self, small: np.ndarray) -> None:
+        k = len(small)
+        self.obstacle, self.free, self.nothing = 2 * k, 2 * k + 1, 2 * k + 2
+        categories = np.arange(k)
+        self.table = np.full(256, self.nothing, dtype=np.int16)  # voxel label -> rank
+        self.table[FIRST_CATEGORY + categories] = np.where(small, categories, k + categories)
+        codes = np.empty(2 * k + 3, dtype=np.float32)  # rank -> crop label
+        codes[:k] = FIRST_CATEGORY + categories
+        codes[k : 2 * k] = FIRST_CATEGORY + categories
+        codes[self.obstacle :] = OBSTACLE_CODE, FREE_CODE, UNKNOWN_CODE
+        self.codes = codes
+
+
+def egocentric_labels(
+    ranks: np.ndarray,
+    explored: np.ndarray,
+    label_ranks: LabelRanks,
+    frame: MapFrame,
+    pose,
+    size: int = 20,
+    cell: float = 0.25,
+) -> np.ndarray:
+    """(size, size) float32: :func:`egocentric_crop`'s cells, one label each by
+    :class:`LabelRanks` (``FIRST_CATEGORY + k`` for category k, else ``OBSTACLE_CODE``,
+    ``FREE_CODE`` or ``UNKNOWN_CODE``), from the map's per-column ranks: one value per sample
+    instead of every channel."""
+    sub = max(int(round(cell / frame.cell)), 1)
+    rows, cols = _egocentric_cells(frame, pose, size, cell, sub)
+    best = pooled_ranks(
+        ranks, explored, rows, cols, size, sub, label_ranks.nothing, label_ranks.free
+    )
+    return label_ranks.codes[best]
 
 
 WIDE_SIZE = 20  # cells of the wide layout

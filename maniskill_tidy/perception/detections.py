@@ -36,21 +36,13 @@ class Detection:
     distance: float  # metres from the camera to ``position``
 
 
-def id_counts(seg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The segmentation ids present, ascending, and their counts: ``np.unique(seg,
-    return_counts=True)`` by a histogram, several times cheaper for ids as small as ours."""
-    counts = np.bincount(np.asarray(seg).ravel())
-    ids = np.flatnonzero(counts)
-    return ids, counts[ids]
-
-
 LOW = 5  # percentile of an object's heights taken as its lowest point (robust to stray pixels)
 
 
 def _instances(frame: FramePoints, instances: dict, kind: str) -> list[tuple[int, object]]:
     """(segmentation id, instance) of every instance of ``kind`` covering at least MIN_PIXELS
     pixels (a point of a strided back-projection stands for stride^2 pixels), ids ascending."""
-    ids, counts = id_counts(frame.seg)
+    ids, counts = frame.id_counts
     out = []
     for sid, n in zip(ids, counts, strict=True):
         inst = instances.get(int(sid))

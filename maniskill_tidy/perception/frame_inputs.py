@@ -33,12 +33,8 @@ from numba import njit
 
 from maniskill_tidy.houses.schema import House
 from maniskill_tidy.knowledge import FLOOR, load_catalog
-from maniskill_tidy.perception.detections import (
-    detect_objects,
-    id_counts,
-    resting_place,
-    surface_table,
-)
+from maniskill_tidy.perception.detections import detect_objects, resting_place, surface_table
+from maniskill_tidy.perception.map_grid import id_counts
 from maniskill_tidy.perception.semantic_map import MapConfig, SemanticMap
 
 IMAGE = 64  # visual encoder input side (pixels)

@@ -65,3 +65,11 @@ def label_table(instances: dict, categories: tuple[str, ...]) -> np.ndarray:
         elif inst.type in index:
             table[sid] = FIRST_CATEGORY + index[inst.type]
     return table
+
+
+def id_counts(seg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The segmentation ids present, ascending, and their counts: ``np.unique(seg,
+    return_counts=True)`` by a histogram, several times cheaper for ids as small as ours."""
+    counts = np.bincount(np.asarray(seg).ravel())
+    ids = np.flatnonzero(counts)
+    return ids, counts[ids]

@@ -278,22 +278,33 @@ def clear_seen_through(flat, cam, depth, label, voxels, k, cell, see_through, un
 
 
 @_jit
-def refresh_columns(columns, voxels, top_down, blocks, lo, hi, first_category, first_channel,
-                    obstacle):  # fmt: skip
-    """Re-read the top-down channels of the given columns off their voxels."""
+def refresh_columns(columns, voxels, top_down, ranks, label_rank, blocks, lo, hi, first_category,
+                    first_channel, obstacle, obstacle_rank):  # fmt: skip
+    """Re-read the top-down channels of the given columns off their voxels, and each column's
+    rank (``crops.LabelRanks``): its best category's, else ``obstacle_rank`` for an obstacle,
+    else ``label_rank``'s rank for no category (what any label other than one gets)."""
     layers = voxels.shape[-1]
     flat_voxels = voxels.reshape(-1, layers)
     td = top_down.reshape(-1, top_down.shape[-1])
+    flat_ranks = ranks.reshape(-1)
+    nothing = label_rank[0]
     for column in columns:
         td[column, :] = 0
+        blocked = False
         for z in range(lo, min(hi, layers)):
             if blocks[flat_voxels[column, z]]:
                 td[column, obstacle] = 1
+                blocked = True
                 break
+        best = nothing
         for z in range(layers):
             v = flat_voxels[column, z]
             if v >= first_category:
                 td[column, first_channel + v - first_category] = 1
+                best = min(best, label_rank[v])
+        if best == nothing and blocked:
+            best = obstacle_rank
+        flat_ranks[column] = best
 
 
 @_jit
@@ -376,6 +387,27 @@ def pooled_samples(top_down, rows, cols, size, sub):
             v = top_down[r, c, k]
             if v > out[a, b, k]:
                 out[a, b, k] = v
+    return out
+
+
+@_jit
+def pooled_ranks(ranks, explored, rows, cols, size, sub, nothing, free_rank):
+    """(size, size) int16: per crop cell the best (lowest) rank over its sub x sub samples,
+    read at map cells (rows, cols); a sample with ``nothing`` ranks ``free_rank`` where explored,
+    and off the map it ranks ``nothing``. The crop's labels from one value per sample, not from
+    every channel (``pooled_samples``)."""
+    n_rows, n_cols = ranks.shape
+    out = np.full((size, size), nothing, np.int16)
+    for i in range(len(rows)):
+        r, c = rows[i], cols[i]
+        if r < 0 or r >= n_rows or c < 0 or c >= n_cols:
+            continue
+        v = ranks[r, c]
+        if v == nothing and explored[r, c]:
+            v = free_rank
+        a, b = _crop_cell(i, size, sub)
+        if v < out[a, b]:
+            out[a, b] = v
     return out
 
 

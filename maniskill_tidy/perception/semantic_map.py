@@ -45,13 +45,20 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
 from maniskill_tidy.houses.schema import House
 from maniskill_tidy.knowledge import load_catalog
 from maniskill_tidy.perception import map_kernels as kernels
-from maniskill_tidy.perception.crops import egocentric_crop, pool_to_planner, wide_layout
+from maniskill_tidy.perception.crops import (
+    LabelRanks,
+    egocentric_crop,
+    egocentric_labels,
+    pool_to_planner,
+    wide_layout,
+)
 from maniskill_tidy.perception.frontiers import Frontier, find_frontiers
 from maniskill_tidy.perception.map_grid import (
     EXPLORED,
@@ -63,6 +70,7 @@ from maniskill_tidy.perception.map_grid import (
     UNKNOWN,
     WALL_LABEL,
     MapFrame,
+    id_counts,
     label_table,
 )
 
@@ -103,6 +111,12 @@ class FramePoints:
     seg: np.ndarray  # (N,) segmentation id of each point's pixel
     camera: np.ndarray  # (3,) world position of the camera
     stride: int = 1  # pixel stride of the back-projection: a point stands for stride^2 pixels
+
+    @cached_property
+    def id_counts(self) -> tuple[np.ndarray, np.ndarray]:
+        """The points' segmentation ids, ascending, and how many points carry each: counted
+        once per frame, for the detections and the seen robots alike."""
+        return id_counts(self.seg)
 
 
 def camera_position(extrinsics) -> np.ndarray:
@@ -176,6 +190,9 @@ class SemanticMap:
         self.explored = np.zeros((rows, cols), dtype=bool)
         self._movable_voxels = np.zeros(0, dtype=np.int64)  # flat indices, for the check
         self._top_down = np.zeros((rows, cols, self.channels), dtype=np.uint8)
+        # the order of a label crop (map messages): small objects first
+        self.label_ranks = LabelRanks(np.array([c in small for c in self.categories]))
+        self._ranks = np.full((rows, cols), self.label_ranks.nothing, dtype=np.int16)
         self._band = (
             max(int(OBSTACLE_BAND[0] / self.config.cell), 0),
             int(math.ceil(OBSTACLE_BAND[1] / self.config.cell)),
@@ -297,8 +314,9 @@ class SemanticMap:
         """Re-read the top-down channels of the (unique) columns whose voxels changed."""
         lo, hi = self._band
         kernels.refresh_columns(
-            columns, self.voxels, self._top_down, self._blocks, lo, hi,
-            FIRST_CATEGORY, FIRST_CHANNEL, OBSTACLE,
+            columns, self.voxels, self._top_down, self._ranks, self.label_ranks.table,
+            self._blocks, lo, hi, FIRST_CATEGORY, FIRST_CHANNEL, OBSTACLE,
+            self.label_ranks.obstacle,
         )  # fmt: skip
 
     # ------------------------------------------------------------------ reading
@@ -322,6 +340,18 @@ class SemanticMap:
         """The egocentric crop the scene encoder reads; see :func:`egocentric_crop`."""
         return egocentric_crop(
             self.top_down(),
+            self.frame,
+            pose,
+            size or self.config.crop_size,
+            cell or self.config.crop_cell,
+        )
+
+    def label_crop(self, pose, size: int | None = None, cell: float | None = None) -> np.ndarray:
+        """:meth:`local_crop` folded into one label per cell; see :func:`egocentric_labels`."""
+        return egocentric_labels(
+            self._ranks,
+            self.explored,
+            self.label_ranks,
             self.frame,
             pose,
             size or self.config.crop_size,

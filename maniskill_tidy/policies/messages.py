@@ -7,8 +7,9 @@
 - **map** (400 values): the sender's semantic-map crop ``G x G = 20 x 20`` around it
   (``SemanticMap.local_crop``, 0.25 m cells, turned to its heading), one value per cell: the
   ``(K + 2)`` channels folded into a label as the map's voxels are labelled (0 unknown,
-  1 explored free, 2 obstacle, ``3 + k`` category k, small objects before furniture), and
-  ``-(3 + k)`` where the sender judges an object of category k misplaced.
+  1 explored free, 2 obstacle, ``3 + k`` category k, small objects before furniture:
+  ``SemanticMap.label_crop``), and ``-(3 + k)`` where the sender judges an object of category
+  k misplaced.
 - **assignment** (6 values, from a central node): ``(kind, o, x, y, z, 0)`` with kind 0 none,
   1 fetch the object of type o near (x, y, z), 2 explore around (x, y).
 
@@ -20,20 +21,18 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 from numba import njit
 
 from maniskill_tidy.knowledge import ROOM_TYPES, load_catalog
-from maniskill_tidy.perception.map_grid import EXPLORED, FIRST_CATEGORY, FIRST_CHANNEL, OBSTACLE
+from maniskill_tidy.perception.map_grid import FIRST_CATEGORY
 from maniskill_tidy.perception.semantic_map import SemanticMap
 from maniskill_tidy.policies.base import EXPLORE, PLACE, SubTask
 
 STATE_DIMS = 10
 ASSIGNMENT_DIMS = 6
 KINDS = (EXPLORE, PLACE, "Park")
-FREE_CODE, OBSTACLE_CODE = 1, 2
 NONE, FETCH, EXPLORE_AREA = 0, 1, 2
 
 
@@ -82,43 +81,6 @@ def decode_state(v: np.ndarray) -> State:
 
 
 # ---------------------------------------------------------------------- map crop
-@lru_cache(maxsize=4)
-def _small(categories: tuple[str, ...]) -> np.ndarray:
-    """Per category, whether it is a small (pickupable) object's."""
-    small = set(load_catalog().pickupable)
-    return np.array([c in small for c in categories])
-
-
-def crop_labels(crop: np.ndarray, categories: tuple[str, ...]) -> np.ndarray:
-    """A 0/1 crop (G, G, K + 2) folded into one float32 label per cell: ``3 + k`` for its first
-    small-object category k, else its first category; else 2 for an obstacle, 1 explored, 0."""
-    return _fold(crop, _small(categories), FIRST_CHANNEL, FIRST_CATEGORY, OBSTACLE, EXPLORED)
-
-
-@njit(cache=True, nogil=True)
-def _fold(crop, small, first_channel, first_category, obstacle, explored):
-    """:func:`crop_labels` in one pass over the crop, not a dozen numpy passes."""
-    rows, cols, _ = crop.shape
-    out = np.zeros((rows, cols), np.float32)
-    for r in range(rows):
-        for c in range(cols):
-            best = -1  # the first category present, until a small-object one is found
-            for k in range(len(small)):
-                if crop[r, c, first_channel + k] > 0:
-                    if small[k]:
-                        best = k
-                        break
-                    if best < 0:
-                        best = k
-            if best >= 0:
-                out[r, c] = first_category + best
-            elif crop[r, c, obstacle] > 0:
-                out[r, c] = OBSTACLE_CODE
-            elif crop[r, c, explored] > 0:
-                out[r, c] = FREE_CODE
-    return out
-
-
 def crop_cell_centres(pose, size: int, cell: float) -> np.ndarray:
     """(size, size, 2) world (x, y) of the crop cells' centres (``egocentric_crop``'s layout:
     row 0 furthest ahead, column 0 on the left, the agent in the middle)."""
@@ -146,7 +108,7 @@ def encode_crop(
 ) -> np.ndarray:
     """The sender's crop as ``G x G`` labels; ``misplaced``: (type, position) it judges so."""
     cfg = semantic_map.config
-    labels = crop_labels(semantic_map.local_crop(pose), tuple(semantic_map.categories))
+    labels = semantic_map.label_crop(pose)
     if misplaced:
         centres = crop_cell_centres(pose, cfg.crop_size, cfg.crop_cell).reshape(-1, 2)
         index = {c: i for i, c in enumerate(semantic_map.categories)}
