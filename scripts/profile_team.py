@@ -1,9 +1,11 @@
 """Where a team's episode goes: cProfile of a few Setting I test episodes (issue 48).
 
-    python scripts/profile_team.py hangrcom --episodes 2 [--env HeteroTidy-v2] [--top 40]
+    python scripts/profile_team.py hangrcom --episodes 2 [--env HeteroTidy-v2] [--top 40] \
+        [--callers REGEX]
 
 Prints the functions with the most time of their own and the most cumulative time, and the
-split between the env (reset, step) and the team (observe, send, act). Nothing is written.
+split between the env (reset, step) and the team (observe, send, act); ``--callers`` adds who
+called the functions whose names match (``_unique_hash|astype``). Nothing is written.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ def main() -> None:
     p.add_argument("--env", default="HeteroTidy-v1")
     p.add_argument("--dataset", default="data/tidy120")
     p.add_argument("--top", type=int, default=40)
+    p.add_argument("--callers", help="regex of functions whose callers to print")
     args = p.parse_args()
 
     cfg = RunConfig(args.policy, "I", "test", args.dataset, args.episodes, env=args.env)
@@ -54,6 +57,8 @@ def main() -> None:
     stats = pstats.Stats(profile)
     stats.sort_stats("tottime").print_stats(args.top)
     stats.sort_stats("cumulative").print_stats(args.top)
+    if args.callers:
+        stats.print_callers(args.callers)
 
 
 if __name__ == "__main__":
