@@ -404,10 +404,11 @@ def weighted_argmax_labels(crop: np.ndarray, small: np.ndarray) -> np.ndarray:
     ).astype(np.float32)
 
 
-def test_label_crops_are_the_folded_channel_crops(env, surveys):
-    """The label crop read off the map's per-column ranks, against the channel crop folded as
-    before, on random voxel grids (every mix of categories, floor, walls and explored cells in a
-    column) and on the surveys' maps, in poses all over the house and past its edges."""
+def test_crops_read_off_the_maps_bits_and_ranks_are_the_pooled_top_down(env, surveys):
+    """The channel crop read off the map's bits against the top-down map max-pooled, and the
+    label crop read off its per-column ranks against that crop folded as before, on random
+    voxel grids (every mix of categories, floor, walls and explored cells in a column) and on
+    the surveys' maps, in poses all over the house and past its edges."""
     from maniskill_tidy.knowledge import load_catalog
 
     rng = np.random.default_rng(5)
@@ -422,7 +423,10 @@ def test_label_crops_are_the_folded_channel_crops(env, surveys):
         for _ in range(8):
             x, y = rng.uniform(-1, cols * cell + 1) + x0, rng.uniform(-1, rows * cell + 1) + y0
             pose = (x, y, int(rng.choice([0, 90, 180, 270])))
-            want = weighted_argmax_labels(semantic.local_crop(pose), small)
+            crop = egocentric_crop(semantic.top_down(), semantic.frame, pose, 20, 0.25)
+            got_crop = semantic.local_crop(pose)
+            assert got_crop.dtype == np.uint8 and np.array_equal(got_crop, crop)
+            want = weighted_argmax_labels(crop, small)
             got = semantic.label_crop(pose)
             assert got.dtype == np.float32 and np.array_equal(got, want)
             labels.append(got)

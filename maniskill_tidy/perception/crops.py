@@ -17,6 +17,7 @@ from maniskill_tidy.perception.map_grid import (
 )
 from maniskill_tidy.perception.map_kernels import (
     egocentric_cells,
+    pooled_bits,
     pooled_ranks,
     pooled_samples,
     sample_shares,
@@ -48,6 +49,24 @@ def egocentric_crop(
     sub = max(int(round(cell / frame.cell)), 1)
     rows, cols = _egocentric_cells(frame, pose, size, cell, sub)
     return pooled_samples(top_down, rows, cols, size, sub)
+
+
+def egocentric_bits(
+    bits: np.ndarray,
+    explored: np.ndarray,
+    channels: int,
+    frame: MapFrame,
+    pose,
+    size: int = 20,
+    cell: float = 0.25,
+) -> np.ndarray:
+    """:func:`egocentric_crop` of a 0/1 top-down map of ``channels`` channels held as bits
+    per map cell (``bits``, 64 channels a word, the explored channel left out) and its
+    ``explored`` cells: the same crop, OR-ing a few words per sample instead of taking the
+    maximum of every channel."""
+    sub = max(int(round(cell / frame.cell)), 1)
+    rows, cols = _egocentric_cells(frame, pose, size, cell, sub)
+    return pooled_bits(bits, explored, rows, cols, size, sub, channels, EXPLORED)
 
 
 class LabelRanks:

@@ -278,22 +278,36 @@ def clear_seen_through(flat, cam, depth, label, voxels, k, cell, see_through, un
 
 
 @_jit
-def refresh_columns(columns, voxels, top_down, ranks, label_rank, blocks, lo, hi, first_category,
-                    first_channel, obstacle, obstacle_rank):  # fmt: skip
-    """Re-read the top-down channels of the given columns off their voxels, and each column's
-    rank (``crops.LabelRanks``): its best category's, else ``obstacle_rank`` for an obstacle,
-    else ``label_rank``'s rank for no category (what any label other than one gets)."""
+def _set_bit(words, k):
+    words[k >> 6] |= np.uint64(1) << np.uint64(k & 63)
+
+
+@_jit
+def _has_bit(words, k):
+    return (words[k >> 6] >> np.uint64(k & 63)) & np.uint64(1) != 0
+
+
+@_jit
+def refresh_columns(columns, voxels, top_down, bits, ranks, label_rank, blocks, lo, hi,
+                    first_category, first_channel, obstacle, obstacle_rank):  # fmt: skip
+    """Re-read the top-down channels of the given columns off their voxels, the same channels
+    as bits (``bits``: 64 channels a word), and each column's rank (``crops.LabelRanks``): its
+    best category's, else ``obstacle_rank`` for an obstacle, else ``label_rank``'s rank for no
+    category (what any label other than one gets)."""
     layers = voxels.shape[-1]
     flat_voxels = voxels.reshape(-1, layers)
     td = top_down.reshape(-1, top_down.shape[-1])
+    flat_bits = bits.reshape(-1, bits.shape[-1])
     flat_ranks = ranks.reshape(-1)
     nothing = label_rank[0]
     for column in columns:
         td[column, :] = 0
+        flat_bits[column, :] = 0
         blocked = False
         for z in range(lo, min(hi, layers)):
             if blocks[flat_voxels[column, z]]:
                 td[column, obstacle] = 1
+                _set_bit(flat_bits[column], obstacle)
                 blocked = True
                 break
         best = nothing
@@ -301,6 +315,7 @@ def refresh_columns(columns, voxels, top_down, ranks, label_rank, blocks, lo, hi
             v = flat_voxels[column, z]
             if v >= first_category:
                 td[column, first_channel + v - first_category] = 1
+                _set_bit(flat_bits[column], first_channel + v - first_category)
                 best = min(best, label_rank[v])
         if best == nothing and blocked:
             best = obstacle_rank
@@ -387,6 +402,34 @@ def pooled_samples(top_down, rows, cols, size, sub):
             v = top_down[r, c, k]
             if v > out[a, b, k]:
                 out[a, b, k] = v
+    return out
+
+
+@_jit
+def pooled_bits(bits, explored, rows, cols, size, sub, channels, explored_channel):
+    """(size, size, channels) uint8: ``pooled_samples`` of a 0/1 top-down map from its bits
+    (``refresh_columns``) and its explored cells: per crop cell a word-wise OR over its
+    samples, then unpacked, instead of every channel of every sample."""
+    n_rows, n_cols, words = bits.shape
+    union = np.zeros((size, size, words), np.uint64)
+    seen = np.zeros((size, size), np.bool_)
+    for i in range(len(rows)):
+        r, c = rows[i], cols[i]
+        if r < 0 or r >= n_rows or c < 0 or c >= n_cols:
+            continue
+        a, b = _crop_cell(i, size, sub)
+        for w in range(words):
+            union[a, b, w] |= bits[r, c, w]
+        if explored[r, c]:
+            seen[a, b] = True
+    out = np.zeros((size, size, channels), np.uint8)
+    for a in range(size):
+        for b in range(size):
+            for k in range(channels):
+                if _has_bit(union[a, b], k):
+                    out[a, b, k] = 1
+            if seen[a, b]:
+                out[a, b, explored_channel] = 1
     return out
 
 

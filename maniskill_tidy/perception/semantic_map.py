@@ -54,7 +54,7 @@ from maniskill_tidy.knowledge import load_catalog
 from maniskill_tidy.perception import map_kernels as kernels
 from maniskill_tidy.perception.crops import (
     LabelRanks,
-    egocentric_crop,
+    egocentric_bits,
     egocentric_labels,
     pool_to_planner,
     wide_layout,
@@ -190,6 +190,8 @@ class SemanticMap:
         self.explored = np.zeros((rows, cols), dtype=bool)
         self._movable_voxels = np.zeros(0, dtype=np.int64)  # flat indices, for the check
         self._top_down = np.zeros((rows, cols, self.channels), dtype=np.uint8)
+        # the same channels as bits, 64 a word, for the crops (explored comes from its array)
+        self._bits = np.zeros((rows, cols, (self.channels + 63) // 64), dtype=np.uint64)
         # the order of a label crop (map messages): small objects first
         self.label_ranks = LabelRanks(np.array([c in small for c in self.categories]))
         self._ranks = np.full((rows, cols), self.label_ranks.nothing, dtype=np.int16)
@@ -314,7 +316,7 @@ class SemanticMap:
         """Re-read the top-down channels of the (unique) columns whose voxels changed."""
         lo, hi = self._band
         kernels.refresh_columns(
-            columns, self.voxels, self._top_down, self._ranks, self.label_ranks.table,
+            columns, self.voxels, self._top_down, self._bits, self._ranks, self.label_ranks.table,
             self._blocks, lo, hi, FIRST_CATEGORY, FIRST_CHANNEL, OBSTACLE,
             self.label_ranks.obstacle,
         )  # fmt: skip
@@ -337,9 +339,12 @@ class SemanticMap:
         return pool_to_planner(self.top_down(), self.planner_shape)
 
     def local_crop(self, pose, size: int | None = None, cell: float | None = None) -> np.ndarray:
-        """The egocentric crop the scene encoder reads; see :func:`egocentric_crop`."""
-        return egocentric_crop(
-            self.top_down(),
+        """The egocentric crop the scene encoder reads: :func:`egocentric_crop` of
+        :meth:`top_down`, read off the map's bits (:func:`egocentric_bits`)."""
+        return egocentric_bits(
+            self._bits,
+            self.explored,
+            self.channels,
             self.frame,
             pose,
             size or self.config.crop_size,
