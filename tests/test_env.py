@@ -229,7 +229,7 @@ def test_episodes_free_their_scenes_and_the_last_close_thaws_the_frozen_heap(mon
 
 def test_rgb_is_the_colour_picture_without_alpha(env):
     """The observation's rgb is the camera's colour picture, alpha dropped, as a C-contiguous
-    (H, W, 3) uint8 array (OpenCV drops alpha; numpy's copy of the view was 40x slower)."""
+    (H, W, 3) uint8 array (OpenCV drops alpha; numpy's copy of the view was slower)."""
     obs, _ = env.reset(options={"episode": 1})
     for name in env.agent_names:
         rgb = obs[name]["rgb"]

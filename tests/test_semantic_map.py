@@ -412,8 +412,9 @@ def test_crops_read_off_the_maps_bits_and_ranks_are_the_pooled_top_down(env, sur
     from maniskill_tidy.knowledge import load_catalog
 
     rng = np.random.default_rng(5)
-    categories = SemanticMap(env.house, {}).categories
-    k, pickupable = len(categories), set(load_catalog().pickupable)
+    catalog = load_catalog()
+    categories = catalog.categories  # a map's, by default
+    k, pickupable = len(categories), set(catalog.pickupable)
     small = np.array([c in pickupable for c in categories])
     assert small.any() and not small.all()
 

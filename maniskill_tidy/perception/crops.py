@@ -46,8 +46,7 @@ def egocentric_crop(
     of map-cell spacing), so a 5 cm object is not lost in a 25 cm crop cell. Cells outside the
     map are 0.
     """
-    sub = max(int(round(cell / frame.cell)), 1)
-    rows, cols = _egocentric_cells(frame, pose, size, cell, sub)
+    rows, cols, sub = _crop_samples(frame, pose, size, cell)
     return pooled_samples(top_down, rows, cols, size, sub)
 
 
@@ -64,8 +63,7 @@ def egocentric_bits(
     per map cell (``bits``, 64 channels a word, the explored channel left out) and its
     ``explored`` cells: the same crop, OR-ing a few words per sample instead of taking the
     maximum of every channel."""
-    sub = max(int(round(cell / frame.cell)), 1)
-    rows, cols = _egocentric_cells(frame, pose, size, cell, sub)
+    rows, cols, sub = _crop_samples(frame, pose, size, cell)
     return pooled_bits(bits, explored, rows, cols, size, sub, channels, EXPLORED)
 
 
@@ -105,8 +103,7 @@ def egocentric_labels(
     :class:`LabelRanks` (``FIRST_CATEGORY + k`` for category k, else ``OBSTACLE_CODE``,
     ``FREE_CODE`` or ``UNKNOWN_CODE``), from the map's per-column ranks: one value per sample
     instead of every channel."""
-    sub = max(int(round(cell / frame.cell)), 1)
-    rows, cols = _egocentric_cells(frame, pose, size, cell, sub)
+    rows, cols, sub = _crop_samples(frame, pose, size, cell)
     best = pooled_ranks(
         ranks, explored, rows, cols, size, sub, label_ranks.nothing, label_ranks.free
     )
@@ -138,6 +135,13 @@ def wide_layout(
     """
     rows, cols = _egocentric_cells(frame, pose, size, cell, samples)
     return sample_shares(top_down, rows, cols, size, samples, OBSTACLE, EXPLORED, FIRST_CHANNEL)
+
+
+def _crop_samples(frame: MapFrame, pose, size: int, cell: float):
+    """The crop's sample cells at map-cell spacing, ``sub`` x ``sub`` per crop cell: (rows,
+    cols, sub) for the pooling kernels."""
+    sub = max(int(round(cell / frame.cell)), 1)
+    return (*_egocentric_cells(frame, pose, size, cell, sub), sub)
 
 
 def _egocentric_cells(frame: MapFrame, pose, size: int, cell: float, sub: int):
