@@ -21,7 +21,8 @@ echo "[wheel-check] installing $(basename "$OUT"/dist/*.whl) into a fresh venv"
 "$OUT/venv/bin/pip" install -q -c constraints.txt "$OUT"/dist/*.whl 2>&1 \
   | { grep -v -e "is ignored: it is neither a file nor a directory" || true; }
 cd "$OUT"  # no source tree on the path from here
-venv/bin/python - <<'PY'
+# an empty cache: the env reads SAPIEN's BRDF table back with the wheel's shader (sim/brdf_lut.py)
+XDG_CACHE_HOME="$OUT/cache" venv/bin/python - <<'PY'
 import gymnasium as gym
 import numpy as np
 

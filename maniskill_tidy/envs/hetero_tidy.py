@@ -59,6 +59,7 @@ from maniskill_tidy.envs.registration import ENV_ID, register_gym
 from maniskill_tidy.envs.robots import build_robot, robot_kind, robot_pose
 from maniskill_tidy.houses.schema import House
 from maniskill_tidy.knowledge import FLOOR, load_placement
+from maniskill_tidy.sim import brdf_lut
 from maniskill_tidy.sim.house_scene import HouseScene, Instance
 from maniskill_tidy.sim.visibility import camera_arc
 from maniskill_tidy.tasks.metatask import apply_task
@@ -225,6 +226,14 @@ class HeteroTidyEnv(BaseEnv):
 
     def _load_lighting(self, options: dict) -> None:
         """Lights come with the house (``HouseScene``)."""
+
+    def _setup_sensors(self, options: dict) -> None:
+        super()._setup_sensors(options)
+        if self.backend.render_device.is_cpu():
+            # lavapipe: SAPIEN's own BRDF table would cost 5.3 s at the process's first
+            # picture; the cached one draws the same pixels (sim/brdf_lut.py)
+            cameras = [*self._sensors.values(), *self._human_render_cameras.values()]
+            brdf_lut.lend(c for cam in cameras for c in cam.camera._render_cameras)
 
     @property
     def _default_sensor_configs(self) -> list[CameraConfig]:
