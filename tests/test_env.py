@@ -468,3 +468,27 @@ def test_v1_is_not_called_out_of_date_beside_v2():
         register_gym()  # puts its filter in front of the test's
         gym.make("HeteroTidy-v1", setting="I", split="test", obs_mode="none").close()
     assert not [w for w in caught if "out of date" in str(w.message)]
+
+
+@pytest.mark.parametrize("visuals", ["flat", "realistic"])
+def test_previews_segment_every_pixel_as_the_agents_own_camera(visuals):
+    """The expert's previews (and the PickUp / PutDown checks without pictures) draw with a
+    segmentation-only shader on a second camera: from viewpoints on the house's objects, its
+    ids must be the agent camera's, pixel for pixel (v2 hides unseen rooms and has textures
+    whose alpha discards pixels)."""
+    e = HeteroTidyEnv(setting="I", split="test", visuals=visuals)
+    name = e.agent_names[MANI]
+    try:
+        e.reset(options={"episode": 2})
+        seen = set()
+        for oid in sorted(e.hs.objects)[::3]:
+            vps = viewpoints(e.house, object_centre(e, oid), e.kinds[MANI].camera_height)
+            for vp in vps[:2]:
+                if any(b.cell == vp.cell for b in e.agents[:MANI]):
+                    continue
+                own = teleport(e, MANI, vp.cell, vp.rotation, vp.horizon)[name]["segmentation"]
+                assert np.array_equal(e._render_segmentations([name])[name], own), (oid, vp)
+                seen |= set(np.unique(own).tolist())
+        assert len(seen) > 20  # objects, furniture, walls and floors, not one blank wall
+    finally:
+        e.close()

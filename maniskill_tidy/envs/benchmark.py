@@ -28,7 +28,7 @@ def raw_render_loop(env: HeteroTidyEnv, frames: int, hide: bool = False) -> floa
     for _ in range(frames):
         scene.update_render()
         if hide:
-            env._take_pictures(env.agent_names)
+            env._take_pictures(env._agent_cameras(env.agent_names))
         for cam in cams:
             if not hide:
                 cam.take_picture()

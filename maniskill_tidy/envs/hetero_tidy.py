@@ -59,7 +59,7 @@ from maniskill_tidy.envs.registration import ENV_ID, register_gym
 from maniskill_tidy.envs.robots import build_robot, robot_kind, robot_pose
 from maniskill_tidy.houses.schema import House
 from maniskill_tidy.knowledge import FLOOR, load_placement
-from maniskill_tidy.sim import brdf_lut
+from maniskill_tidy.sim import SHADERS, brdf_lut
 from maniskill_tidy.sim.house_scene import HouseScene, Instance
 from maniskill_tidy.sim.visibility import camera_arc
 from maniskill_tidy.tasks.metatask import apply_task
@@ -141,6 +141,7 @@ class HeteroTidyEnv(BaseEnv):
         self.hs: HouseScene | None = None
         self._episode: Episode | None = None
         self._last_seg: dict[str, np.ndarray] = {}
+        self._segmentation_cameras: dict[str, sapien.render.RenderCameraComponent] = {}
         kwargs.setdefault("render_backend", default_render_backend())
         kwargs.setdefault("obs_mode", "rgb+depth+segmentation")
         kwargs["robot_uids"] = "none"
@@ -229,6 +230,7 @@ class HeteroTidyEnv(BaseEnv):
 
     def _setup_sensors(self, options: dict) -> None:
         super()._setup_sensors(options)
+        self._segmentation_cameras = {}  # made on demand, on this scene's robots
         if self.backend.render_device.is_cpu():
             # lavapipe: SAPIEN's own BRDF table would cost 5.3 s at the process's first
             # picture; the cached one draws the same pixels (sim/brdf_lut.py)
@@ -323,14 +325,14 @@ class HeteroTidyEnv(BaseEnv):
         x, y = self.hs.house.navgrid.center(*a.cell)
         pose = robot_pose(x, y, a.rotation)
         self.robots[i].set_pose(pose)
-        cam = self._sensors[a.name].camera._render_cameras[0]
         pitch = math.radians(a.horizon)
-        cam.set_local_pose(
-            sapien.Pose(
-                p=[kind.camera_ahead, 0.0, kind.camera_height],
-                q=[math.cos(pitch / 2), 0.0, math.sin(pitch / 2), 0.0],
-            )
+        local = sapien.Pose(
+            p=[kind.camera_ahead, 0.0, kind.camera_height],
+            q=[math.cos(pitch / 2), 0.0, math.sin(pitch / 2), 0.0],
         )
+        self._sensors[a.name].camera._render_cameras[0].set_local_pose(local)
+        if a.name in self._segmentation_cameras:
+            self._segmentation_cameras[a.name].set_local_pose(local)
         self.manipulation.carry(a, pose, kind.hold_offset)
 
     @property
@@ -524,29 +526,53 @@ class HeteroTidyEnv(BaseEnv):
         """Fresh segmentations of ``names``' cameras, without the other images."""
         if not names:
             return {}
+        cameras = {name: self._segmentation_camera(name) for name in names}  # before the update
         self.scene.update_render(update_sensors=True, update_human_render_cameras=False)
-        self._take_pictures(names)
-        out = {}
-        for name in names:
-            cam = self._sensors[name].camera._render_cameras[0]
-            out[name] = cam.get_picture("PositionSegmentation")[..., 3].astype(np.int32)
-        return out
+        self._take_pictures(cameras)
+        return {
+            name: cam.get_picture("PositionSegmentation")[..., 3].astype(np.int32)
+            for name, cam in cameras.items()
+        }
 
-    def _take_pictures(self, names: list[str]) -> None:
-        """Each camera renders with the rooms it cannot see hidden (if ``hide_unseen_rooms``);
-        everything is shown again afterwards (the third-person view draws the whole house)."""
+    def _segmentation_camera(self, name: str) -> sapien.render.RenderCameraComponent:
+        """A camera on ``name``'s mount with its own camera's parameters, whose shader writes
+        the segmentation alone (``sim/shaders/segmentation``: the same vertex stage and the same
+        discarded fragments, no lighting). The expert's previews and the PickUp / PutDown checks
+        without pictures read nothing else; the ids are the agent camera's, pixel for pixel
+        (tests/test_env.py)."""
+        cam = self._segmentation_cameras.get(name)
+        if cam is None:
+            config = self._sensor_configs[name]
+            cam = sapien.render.RenderCameraComponent(
+                config.width, config.height, str(SHADERS / "segmentation")
+            )
+            cam.set_fovy(config.fov, compute_x=True)  # as ManiSkill makes the agent's camera
+            cam.near, cam.far = config.near, config.far
+            self.robots[self.agent_names.index(name)].add_component(cam)
+            own = self._sensors[name].camera._render_cameras[0]
+            cam.set_local_pose(own.get_local_pose())  # pitched with it (_place_robot)
+            self._segmentation_cameras[name] = cam
+        return cam
+
+    def _take_pictures(self, cameras: dict[str, sapien.render.RenderCameraComponent]) -> None:
+        """Each agent's camera (``cameras``, by agent) renders with the rooms it cannot see
+        hidden (if ``hide_unseen_rooms``); everything is shown again afterwards (the
+        third-person view draws the whole house)."""
         groups = None
         if self.hide_unseen_rooms:
             movers = dict(self.hs.objects) | dict(zip(self.agent_names, self.robots, strict=True))
             groups = self.hs.room_groups(movers)
         try:
-            for name in names:
+            for name, cam in cameras.items():
                 if groups is not None:
                     self.hs.show_rooms(groups, self.visible_rooms(name))
-                self._sensors[name].camera._render_cameras[0].take_picture()
+                cam.take_picture()
         finally:
             if groups is not None:
                 self.hs.show_rooms(groups, None)
+
+    def _agent_cameras(self, names: list[str]) -> dict[str, sapien.render.RenderCameraComponent]:
+        return {name: self._sensors[name].camera._render_cameras[0] for name in names}
 
     def visible_rooms(self, name: str) -> set[str]:
         """The rooms ``name``'s camera may see from where it is (floor plan and doorways)."""
@@ -570,7 +596,7 @@ class HeteroTidyEnv(BaseEnv):
         if render:
             self.scene.update_render(update_sensors=True, update_human_render_cameras=False)
         if render:
-            self._take_pictures(self.agent_names)
+            self._take_pictures(self._agent_cameras(self.agent_names))
         obs = {}
         for i, a in enumerate(self.agents):
             cam = self._sensors[a.name].camera._render_cameras[0]

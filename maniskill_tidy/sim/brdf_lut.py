@@ -23,8 +23,9 @@ from pathlib import Path
 import numpy as np
 import sapien
 
+from maniskill_tidy.sim import SHADERS
+
 SIZE = 512  # svulkan2's table, whatever size is asked for (SVResourceManager::generateBRDFLUT)
-SHADERS = Path(__file__).with_name("shaders") / "brdf_lut"
 
 
 def _driver() -> str:
@@ -52,7 +53,7 @@ def read_back() -> np.ndarray:
     wall = scene.create_actor_builder()
     wall.add_box_visual(half_size=[0.1, 50.0, 50.0])
     wall.build_static("wall")
-    camera = sapien.render.RenderCameraComponent(SIZE, SIZE, str(SHADERS))
+    camera = sapien.render.RenderCameraComponent(SIZE, SIZE, str(SHADERS / "brdf_lut"))
     camera.set_perspective_parameters(0.1, 10.0, SIZE, SIZE, SIZE / 2, SIZE / 2, 0.0)
     holder = sapien.Entity()
     holder.add_component(camera)
