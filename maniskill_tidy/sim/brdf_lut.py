@@ -32,8 +32,11 @@ def _driver() -> str:
     """SAPIEN, the render device and lavapipe's library file (path, size, time): another
     driver, which may compute other bits, gets a table of its own."""
     summary = sapien.render.get_device_summary()  # also loads the driver
-    with open("/proc/self/maps") as maps:
-        libraries = sorted({line.split()[-1] for line in maps if "libvulkan_lvp" in line})
+    try:
+        with open("/proc/self/maps") as maps:  # Linux: the libraries this process mapped
+            libraries = sorted({line.split()[-1] for line in maps if "libvulkan_lvp" in line})
+    except OSError:
+        libraries = []
     files = [f"{p} {os.stat(p).st_size} {os.stat(p).st_mtime_ns}" for p in libraries]
     return "\n".join([sapien.__version__, summary, *files])
 
