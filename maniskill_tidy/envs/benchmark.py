@@ -23,12 +23,12 @@ def raw_render_loop(env: HeteroTidyEnv, frames: int, hide: bool = False) -> floa
     """Frames (all agent cameras) per second of plain SAPIEN on the env's scene; ``hide``:
     each camera with the rooms it cannot see hidden, as the v2 env does."""
     scene = env.scene.sub_scenes[0]
-    cams = [env._sensors[name].camera._render_cameras[0] for name in env.agent_names]
+    cams = [env._agent_camera(name) for name in env.agent_names]
     start = time.perf_counter()
     for _ in range(frames):
         scene.update_render()
         if hide:
-            env._take_pictures(env._agent_cameras(env.agent_names))
+            env._take_pictures(dict(zip(env.agent_names, cams, strict=True)))
         for cam in cams:
             if not hide:
                 cam.take_picture()

@@ -232,8 +232,9 @@ class HeteroTidyEnv(BaseEnv):
         super()._setup_sensors(options)
         self._segmentation_cameras = {}  # made on demand, on this scene's robots
         if self.backend.render_device.is_cpu():
-            # lavapipe: SAPIEN's own BRDF table would cost 5.3 s at the process's first
-            # picture; the cached one draws the same pixels (sim/brdf_lut.py)
+            # lavapipe: SAPIEN's own BRDF table would cost 5-6 s at the process's first
+            # picture (scripts/startup_probe.py); the cached one draws the same pixels
+            # (sim/brdf_lut.py)
             cameras = [*self._sensors.values(), *self._human_render_cameras.values()]
             brdf_lut.lend(c for cam in cameras for c in cam.camera._render_cameras)
 
@@ -330,7 +331,7 @@ class HeteroTidyEnv(BaseEnv):
             p=[kind.camera_ahead, 0.0, kind.camera_height],
             q=[math.cos(pitch / 2), 0.0, math.sin(pitch / 2), 0.0],
         )
-        self._sensors[a.name].camera._render_cameras[0].set_local_pose(local)
+        self._agent_camera(a.name).set_local_pose(local)
         if a.name in self._segmentation_cameras:
             self._segmentation_cameras[a.name].set_local_pose(local)
         self.manipulation.carry(a, pose, kind.hold_offset)
@@ -549,7 +550,7 @@ class HeteroTidyEnv(BaseEnv):
             cam.set_fovy(config.fov, compute_x=True)  # as ManiSkill makes the agent's camera
             cam.near, cam.far = config.near, config.far
             self.robots[self.agent_names.index(name)].add_component(cam)
-            own = self._sensors[name].camera._render_cameras[0]
+            own = self._agent_camera(name)
             cam.set_local_pose(own.get_local_pose())  # pitched with it (_place_robot)
             self._segmentation_cameras[name] = cam
         return cam
@@ -571,8 +572,9 @@ class HeteroTidyEnv(BaseEnv):
             if groups is not None:
                 self.hs.show_rooms(groups, None)
 
-    def _agent_cameras(self, names: list[str]) -> dict[str, sapien.render.RenderCameraComponent]:
-        return {name: self._sensors[name].camera._render_cameras[0] for name in names}
+    def _agent_camera(self, name: str) -> sapien.render.RenderCameraComponent:
+        """The SAPIEN camera behind ManiSkill's sensor ``name``."""
+        return self._sensors[name].camera._render_cameras[0]
 
     def visible_rooms(self, name: str) -> set[str]:
         """The rooms ``name``'s camera may see from where it is (floor plan and doorways)."""
@@ -587,7 +589,7 @@ class HeteroTidyEnv(BaseEnv):
 
     def _camera_matrices(self, name: str) -> tuple[np.ndarray, np.ndarray, int, int]:
         """(intrinsic, extrinsic, width, height) as PickUp and PutDown use them."""
-        cam = self._sensors[name].camera._render_cameras[0]
+        cam = self._agent_camera(name)
         return cam.get_intrinsic_matrix(), cam.get_extrinsic_matrix(), cam.width, cam.height
 
     def get_obs(self, info: dict | None = None, unflattened: bool = False) -> dict:
@@ -596,10 +598,10 @@ class HeteroTidyEnv(BaseEnv):
         if render:
             self.scene.update_render(update_sensors=True, update_human_render_cameras=False)
         if render:
-            self._take_pictures(self._agent_cameras(self.agent_names))
+            self._take_pictures({n: self._agent_camera(n) for n in self.agent_names})
         obs = {}
         for i, a in enumerate(self.agents):
-            cam = self._sensors[a.name].camera._render_cameras[0]
+            cam = self._agent_camera(a.name)
             o = {}
             if render:
                 if visual.rgb:

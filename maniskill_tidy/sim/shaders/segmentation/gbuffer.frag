@@ -42,7 +42,6 @@ layout(set = 2, binding = 0) uniform MaterialBuffer {
 } materialBuffer;
 
 layout(set = 2, binding = 1) uniform sampler2D colorTexture;
-layout(set = 2, binding = 2) uniform sampler2D roughnessTexture;
 
 struct PointLight {
   vec4 position;
