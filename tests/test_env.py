@@ -169,6 +169,30 @@ def test_blocked_moves_do_not_move(env):
     assert obs["agent_0"]["pose"][2] == 0
 
 
+def test_a_stopped_agents_camera_is_off(env, monkeypatch):
+    """Once an agent stops, its camera is no longer drawn and its observation keeps (copies
+    of) the pictures it took last; the others' cameras still draw, and its pose stays current."""
+    drawn: list[list[str]] = []
+    take = env._take_pictures
+    monkeypatch.setattr(env, "_take_pictures", lambda cams: (drawn.append(list(cams)), take(cams)))
+    env.reset(options={"episode": 0})
+    last, _ = step_one(env, 0, Action.RotateLeft.value)
+    obs, info = step_one(env, 0, Action.Stop.value)
+    assert info["stopped"]["agent_0"]
+    assert drawn[-1] == ["agent_1", "agent_2"]
+    for _ in range(2):
+        before = obs
+        obs, *_ = env.step({"agent_1": Action.RotateLeft.value, "agent_2": Action.RotateLeft.value})
+        assert drawn[-1] == ["agent_1", "agent_2"]
+        for key in ("rgb", "depth", "segmentation"):
+            assert np.array_equal(obs["agent_0"][key], last["agent_0"][key])
+            assert obs["agent_0"][key] is not before["agent_0"][key]
+            assert not np.array_equal(obs["agent_1"][key], before["agent_1"][key])
+    np.testing.assert_array_equal(obs["agent_0"]["pose"], last["agent_0"]["pose"])
+    env.reset(options={"episode": 0})  # every camera draws again
+    assert drawn[-1] == env.agent_names
+
+
 def test_look_is_bounded_and_stop_ends_the_agent(env):
     env.reset(options={"episode": 0})
     _, info = step_one(env, 0, Action.LookUp.value)

@@ -36,8 +36,9 @@ class TeamMaps:
         self.maps = {a: SemanticMap(house, instances, config) for a in agents}
 
     def update(self, obs: dict) -> None:
-        for name, m in self.maps.items():
-            m.update(obs[name])
+        """Fuse each observation of ``obs`` (agent name -> observation) into its agent's map."""
+        for name, o in obs.items():
+            self.maps[name].update(o)
 
     def merged(self) -> np.ndarray:
         return merge([m.top_down() for m in self.maps.values()])

@@ -148,12 +148,13 @@ class EpisodeRecorder:
                     image_plane_distance=0.4,
                 ),
             )
-            if "rgb" in o:
-                rec.log(f"{base}/rgb", rr.Image(o["rgb"]))
-            if "depth" in o:
-                rec.log(f"{base}/depth", rr.DepthImage(o["depth"], meter=1.0))
-            if "segmentation" in o:
-                rec.log(f"{base}/segmentation", rr.SegmentationImage(o["segmentation"]))
+            if not a.stopped:  # a stopped agent's camera is off (its last images stay shown)
+                if "rgb" in o:
+                    rec.log(f"{base}/rgb", rr.Image(o["rgb"]))
+                if "depth" in o:
+                    rec.log(f"{base}/depth", rr.DepthImage(o["depth"], meter=1.0))
+                if "segmentation" in o:
+                    rec.log(f"{base}/segmentation", rr.SegmentationImage(o["segmentation"]))
             if a.name in actions:
                 act = actions[a.name]
                 text = (
@@ -171,7 +172,7 @@ class EpisodeRecorder:
                 rec.log(f"agents/{a.name}/subtask", rr.TextLog(f"{subtask} {subgoal}"))
         self._log_comm(channel)
         if self.maps is not None:
-            self.maps.update(obs)
+            self.maps.update({a.name: obs[a.name] for a in env.agents if not a.stopped})
             self._log_maps(points=t % POINTS_EVERY == 0)
         n = max(len(env.agents), 1)
         rec.log("metrics/reasonable", rr.Scalars(float(info.get("n_reasonable", 0))))
