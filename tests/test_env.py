@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -516,3 +517,53 @@ def test_previews_segment_every_pixel_as_the_agents_own_camera(visuals):
         assert len(seen) > 20  # objects, furniture, walls and floors, not one blank wall
     finally:
         e.close()
+
+
+def test_v1_cameras_draw_sapiens_minimal_pixels():
+    """v1's agent cameras use SAPIEN's minimal pack without image-based light
+    (``sim/shaders/no_ibl``), which adds exactly zero where there is no environment map: from
+    viewpoints on the house's objects, looking down, level and up, every colour, position and
+    segmentation value must be the minimal pack's own."""
+    import sapien
+
+    from maniskill_tidy.envs.actions import HORIZON_RANGE
+    from maniskill_tidy.sim import brdf_lut
+
+    e = HeteroTidyEnv(setting="I", split="test", visuals="flat")
+    name = e.agent_names[MANI]
+    try:
+        e.reset(options={"episode": 2})
+        assert e._camera_shader.shader_pack.endswith("no_ibl")
+        own = e._agent_camera(name)
+        minimal = str(Path(sapien.__file__).parent / "vulkan_shader" / "minimal")
+        ref = sapien.render.RenderCameraComponent(own.width, own.height, minimal)
+        ref.set_fovy(own.fovy, compute_x=True)
+        ref.near, ref.far = own.near, own.far
+        e.robots[MANI].add_component(ref)
+        if e.backend.render_device.is_cpu():
+            brdf_lut.lend([ref])
+        compared = 0
+        for oid in sorted(e.hs.objects)[::4]:
+            vps = viewpoints(e.house, object_centre(e, oid), e.kinds[MANI].camera_height)
+            for vp in vps[:1]:
+                if any(b.cell == vp.cell for b in e.agents[:MANI]):
+                    continue
+                for horizon in (vp.horizon, HORIZON_RANGE[0]):
+                    obs = teleport(e, MANI, vp.cell, vp.rotation, horizon)[name]
+                    ref.set_local_pose(own.get_local_pose())
+                    e.scene.update_render(update_sensors=True, update_human_render_cameras=False)
+                    ref.take_picture()
+                    rgb = ref.get_picture("Color")[..., :3]
+                    pos = ref.get_picture("PositionSegmentation")
+                    assert np.array_equal(rgb, obs["rgb"]), (oid, vp, horizon)
+                    assert np.array_equal(pos[..., 3], obs["segmentation"]), (oid, vp, horizon)
+                    assert np.array_equal(own.get_picture("PositionSegmentation"), pos)
+                    compared += 1
+        assert compared > 10
+    finally:
+        e.close()
+    v2 = HeteroTidyEnv(setting="I", split="test", visuals="realistic", obs_mode="none")
+    try:
+        assert v2._camera_shader.shader_pack == "minimal"  # v2 lights with its environment map
+    finally:
+        v2.close()

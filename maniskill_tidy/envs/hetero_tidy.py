@@ -34,6 +34,7 @@ i.e. of the same scene state an observation at the end of the previous step woul
 
 from __future__ import annotations
 
+import dataclasses
 import gc
 import math
 from collections import Counter
@@ -45,6 +46,7 @@ import numpy as np
 import sapien
 from gymnasium.utils import seeding
 from mani_skill.envs.sapien_env import BaseEnv
+from mani_skill.render.shaders import PREBUILT_SHADER_CONFIGS, ShaderConfig
 from mani_skill.sensors.camera import CameraConfig
 from mani_skill.utils.registration import register_env
 
@@ -97,6 +99,15 @@ gym.registry.pop(ENV_ID, None)  # the lazy entry from maniskill/__init__; regist
 # Envs made and not yet closed in this process: the heap stays frozen (see __init__) while
 # any of them is open.
 _open_envs = 0
+
+
+# the picture formats ManiSkill gives SAPIEN's "minimal" pack (mani_skill/render/shaders.py),
+# which v1's own pack of it needs too
+MINIMAL_FORMATS = {
+    "Color": "r8g8b8a8unorm",
+    "ColorRaw": "r8g8b8a8unorm",
+    "PositionSegmentation": "r16g16b16a16sint",
+}
 
 
 @register_env(ENV_ID, max_episode_steps=None)
@@ -235,7 +246,11 @@ class HeteroTidyEnv(BaseEnv):
         """Lights come with the house (``HouseScene``)."""
 
     def _setup_sensors(self, options: dict) -> None:
+        for texture, fmt in MINIMAL_FORMATS.items():  # ManiSkill sets them for "minimal" only
+            sapien.render.set_picture_format(texture, fmt)
         super()._setup_sensors(options)
+        if self.visuals == "flat" and any(s.render_system.cubemap for s in self.scene.sub_scenes):
+            raise RuntimeError("v1's cameras drop image-based light, but the scene has a cube map")
         self._segmentation_cameras = {}  # made on demand, on this scene's robots
         if self.backend.render_device.is_cpu():
             # lavapipe: SAPIEN's own BRDF table would cost 5-6 s at the process's first
@@ -257,11 +272,23 @@ class HeteroTidyEnv(BaseEnv):
                 near=0.02,
                 far=FAR,
                 mount=actor,
+                shader_config=self._camera_shader,
             )
             for name, kind, actor in zip(
                 self.agent_names, self.kinds, self.robot_actors, strict=True
             )
         ]
+
+    @property
+    def _camera_shader(self) -> ShaderConfig:
+        """The agents' cameras' shaders: SAPIEN's minimal pack, or in v1 the same pack without
+        image-based lighting (``sim/shaders/no_ibl``). v1 sets no environment map, so SAPIEN's
+        cube map is black and that light adds exactly zero: the same pixels, a sixth sooner on
+        lavapipe (``scripts/shader_cost.py``)."""
+        minimal = PREBUILT_SHADER_CONFIGS["minimal"]
+        if self.visuals != "flat":
+            return minimal
+        return dataclasses.replace(minimal, shader_pack=str(SHADERS / "no_ibl"))
 
     @property
     def _default_human_render_camera_configs(self) -> CameraConfig:
