@@ -111,14 +111,22 @@ def main(argv: list[str] | None = None) -> int:
         if args.only == "throughput":
             return 0
     if args.only in (None, "teams"):
-        from maniskill_tidy.eval.team_benchmark import TEAMS, bench_team, bench_workers, report
+        from maniskill_tidy.eval.team_benchmark import (
+            TEAMS,
+            bench_machine,
+            bench_team,
+            bench_workers,
+            report,
+        )
         from maniskill_tidy.training.demos_benchmark import bench_demos
 
         looks = ("HeteroTidy-v1", "HeteroTidy-v2")
         data = args.eval_dataset
         rows = [bench_team(team, dataset=data, env_id=v) for v in looks for team in TEAMS]
         workers = [bench_workers(team, dataset=data) for team in TEAMS]
-        print(report(rows, workers, [bench_demos(dataset=data, env_id=v) for v in looks]))
+        machine = bench_machine()
+        demos = [bench_demos(dataset=data, env_id=v) for v in looks]
+        print(report(rows, workers, demos, machine))
         print()
         if args.only == "teams":
             return 0

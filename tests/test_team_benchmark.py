@@ -60,3 +60,28 @@ def test_cpu_seconds_counts_work_done():
     start = cpu_seconds()
     sum(i * i for i in range(2_000_000))
     assert cpu_seconds() - start > 0.01
+
+
+def test_the_machines_own_two_process_ratio_is_measured_and_reported(monkeypatch):
+    """Two loops side by side against one: the ratio of work per second is what the loops'
+    own times say (a fake machine where the pair runs 1.6 times slower gives 2 / 1.6)."""
+    from maniskill_tidy.eval import team_benchmark
+
+    times = iter(["1.0", "1.6", "1.6"] * 2)
+
+    class Fake:
+        def __init__(self, *a, **k) -> None:
+            self.out = next(times)
+
+        def communicate(self):
+            return self.out, None
+
+    monkeypatch.setattr("subprocess.Popen", Fake)
+    machine = team_benchmark.bench_machine(rounds=2)
+    assert machine["two_over_one"] == pytest.approx(2 / 1.6)
+    workers = {"team": "random", "episodes": 1, "two_over_one": 1.5, "steady": 1.62,
+               "cores_one": 1.37, "cores_two": 1.91}  # fmt: skip
+    assert "this machine" in team_benchmark.report([], [workers], machine=machine)
+    monkeypatch.undo()
+    real = team_benchmark.bench_machine(rounds=1)
+    assert 0.3 < real["two_over_one"] < 3.0  # two real loops ran and timed themselves

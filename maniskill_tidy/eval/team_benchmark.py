@@ -7,7 +7,8 @@ decision or messages). The ratio is the team's cost in units of the env's. The r
 as the episode did (same success and objects placed), or the figure is refused.
 
 Then the 2-worker / 1-worker ratio of ``eval`` for each team, over the whole command and in
-steady state: what a second process buys, and the cores each run kept busy.
+steady state: what a second process buys, and the cores each run kept busy; beside them the
+same ratio for two CPU-bound loops, the most a second process can buy on this machine.
 """
 
 from __future__ import annotations
@@ -114,7 +115,41 @@ def bench_workers(policy: str, episodes: int = 6, dataset: str | None = None) ->
             "cores_two": busy[2]}  # fmt: skip
 
 
-def report(rows: list[dict], workers: list[dict], demos: list[dict] = ()) -> str:
+# a fixed CPU-bound job in a bare interpreter (no threads, no imports); prints its seconds
+SPIN = (
+    "import time\nt = time.perf_counter()\nx = 0\n"
+    "for i in range(12_000_000): x += i\nprint(time.perf_counter() - t)"
+)
+
+
+def bench_machine(rounds: int = 5) -> dict:
+    """What a second process can add on this machine at best: two copies of a CPU-bound
+    Python loop side by side against one alone, as work per second (the median of ``rounds``
+    alternating rounds). On a 2-core virtual machine whose cores share a physical one, or
+    a busy host, this is well below 2, and it bounds every 2-worker / 1-worker ratio."""
+    import statistics
+    import subprocess
+    import sys
+
+    def run(copies: int) -> list[float]:
+        procs = [
+            subprocess.Popen([sys.executable, "-c", SPIN], stdout=subprocess.PIPE, text=True)
+            for _ in range(copies)
+        ]
+        return [float(proc.communicate()[0]) for proc in procs]
+
+    ratios = []
+    for _ in range(rounds):
+        (alone,) = run(1)
+        pair = run(2)
+        ratios.append(sum(alone / t for t in pair))
+    return {"rounds": rounds, "two_over_one": statistics.median(ratios),
+            "spread": (min(ratios), max(ratios))}  # fmt: skip
+
+
+def report(
+    rows: list[dict], workers: list[dict], demos: list[dict] = (), machine: dict | None = None
+) -> str:
     lines = [
         "teams: seconds per episode playing, and of the env alone replaying the same actions",
         f"{'team':>20} {'env':>13} {'episodes':>8} {'team s/ep':>9} {'env s/ep':>8} {'x env':>6}",
@@ -131,6 +166,11 @@ def report(rows: list[dict], workers: list[dict], demos: list[dict] = ()) -> str
             f"{w['team']:>20} {w['episodes']:>8} {w['two_over_one']:>14.2f} "
             f"{w['steady']:>7.2f} {w['cores_one']:>8.2f} {w['cores_two']:>8.2f}"
         )
+    if machine:
+        low, high = machine["spread"]
+        lines.append(f"{'this machine':>20} {'':>8} {machine['two_over_one']:>14.2f} "
+                     f"(two CPU-bound Python loops over one; {low:.2f}-{high:.2f} in "
+                     f"{machine['rounds']} rounds)")  # fmt: skip
     if demos:
         lines.append(f"{'demos --features':>20} {'env':>13} {'traj.':>8} {'s/traj.':>9} "
                      f"{'steady':>7} {'demos hash':>12}")  # fmt: skip
