@@ -40,6 +40,7 @@ def test_the_report_names_each_team(policy):
                "cores_one": 1.37, "cores_two": 1.91}  # fmt: skip
     text = report([bench_team(policy, episodes=1)], [workers])
     assert policy in text and "1.50" in text and "1.37" in text and "1.91" in text
+    assert "1.46" in text  # 2 / 1.37: what a second process could add to one using 1.37 cores
     assert "1.62" in text
 
 

@@ -159,12 +159,14 @@ def report(
             f"{r['team']:>20} {r['env_id']:>13} {r['episodes']:>8} {r['team_s']:>9.2f} "
             f"{r['env_s']:>8.2f} {r['ratio']:>6.2f}"
         )
+    # one process already keeping c cores busy, two on 2 cores can do at most 2 / c as much
     lines.append(f"{'team':>20} {'episodes':>8} {'2 workers / 1':>14} {'steady':>7} "
-                 f"{'cores busy 1 / 2':>17}")  # fmt: skip
+                 f"{'cores busy 1 / 2':>17} {'2 / cores 1':>11}")  # fmt: skip
     for w in workers:
         lines.append(
             f"{w['team']:>20} {w['episodes']:>8} {w['two_over_one']:>14.2f} "
-            f"{w['steady']:>7.2f} {w['cores_one']:>8.2f} {w['cores_two']:>8.2f}"
+            f"{w['steady']:>7.2f} {w['cores_one']:>8.2f} {w['cores_two']:>8.2f} "
+            f"{2 / w['cores_one']:>11.2f}"
         )
     if machine:
         low, high = machine["spread"]
