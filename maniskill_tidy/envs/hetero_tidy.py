@@ -157,7 +157,7 @@ class HeteroTidyEnv(BaseEnv):
         self.hs: HouseScene | None = None
         self._episode: Episode | None = None
         self._last_seg: dict[str, np.ndarray] = {}
-        self._pictures: dict[str, dict[str, np.ndarray]] = {}  # each agent's last pictures
+        self._drawn: set[str] = set()  # agents whose cameras have drawn in this episode
         self._segmentation_cameras: dict[str, sapien.render.RenderCameraComponent] = {}
         kwargs.setdefault("render_backend", default_render_backend())
         kwargs.setdefault("obs_mode", "rgb+depth+segmentation")
@@ -349,7 +349,7 @@ class HeteroTidyEnv(BaseEnv):
         ]
         self.misplaced = [m.object for m in ep.task.misplaced]
         self.picked: set[str] = set()
-        self._pictures = {}
+        self._drawn = set()
         self._t = 0
         self._solved_before = self._reasonable()
         for i in range(len(self.agents)):
@@ -628,8 +628,8 @@ class HeteroTidyEnv(BaseEnv):
 
     def get_obs(self, info: dict | None = None, unflattened: bool = False) -> dict:
         render = self._renders_every_step
-        # the cameras to draw: a stopped agent's is off once it has pictures to keep
-        live = [a.name for a in self.agents if not a.stopped or a.name not in self._pictures]
+        # the cameras to draw: a stopped agent's is off once it has drawn
+        live = [a.name for a in self.agents if not a.stopped or a.name not in self._drawn]
         if render:
             self.scene.update_render(update_sensors=True, update_human_render_cameras=False)
             self._take_pictures({n: self._agent_camera(n) for n in live})
@@ -637,12 +637,9 @@ class HeteroTidyEnv(BaseEnv):
         for i, a in enumerate(self.agents):
             cam = self._agent_camera(a.name)
             o = {}
-            if render:
-                if a.name in live:
-                    o = self._pictures[a.name] = self._read_pictures(a.name)
-                else:  # its camera is off: copies of its last pictures (gymnasium wants no
-                    # two observations to share an array)
-                    o = {k: v.copy() for k, v in self._pictures[a.name].items()}
+            if render:  # a camera that is off still holds its last pictures: read afresh
+                o = self._read_pictures(a.name)
+                self._drawn.add(a.name)
             x, y = self.hs.house.navgrid.center(*a.cell)
             extrinsic = np.eye(4, dtype=np.float32)
             extrinsic[:3] = cam.get_extrinsic_matrix()
