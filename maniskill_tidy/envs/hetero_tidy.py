@@ -628,9 +628,9 @@ class HeteroTidyEnv(BaseEnv):
 
     def get_obs(self, info: dict | None = None, unflattened: bool = False) -> dict:
         render = self._renders_every_step
-        # the cameras to draw: a stopped agent's is off once it has drawn
-        live = [a.name for a in self.agents if not a.stopped or a.name not in self._drawn]
         if render:
+            # a stopped agent's camera is off once it has drawn
+            live = [a.name for a in self.agents if not a.stopped or a.name not in self._drawn]
             self.scene.update_render(update_sensors=True, update_human_render_cameras=False)
             self._take_pictures({n: self._agent_camera(n) for n in live})
         obs = {}

@@ -3,7 +3,7 @@
 // Adapted from SAPIEN 3.0.3's "minimal" camera shader pack (sapien/vulkan_shader/minimal)
 // without its image-based lighting: where the scene has no environment map (v1), SAPIEN's
 // cube map is black and those two terms add exactly zero, so the pixels are the minimal pack's
-// (tests/test_env.py) for 17 % less time per picture on lavapipe (scripts/shader_cost.py).
+// (tests/test_env.py) for 16 % less time per picture on lavapipe (scripts/shader_cost.py).
 // Copyright 2025 Hillbot Inc.
 // Copyright 2020-2024 UCSD SU Lab
 // 
