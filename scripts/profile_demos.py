@@ -1,12 +1,13 @@
 """Where ``demos --features`` spends a trajectory (issue 48).
 
-    python scripts/profile_demos.py [--env HeteroTidy-v2] [--houses 2] [--top 30]
+    python scripts/profile_demos.py [--env HeteroTidy-v2] [--houses 2] [--top 30] \
+        [--callers REGEX]
 
 cProfile of the first meta-task's first start of ``--houses`` train houses (one process, as
 ``bench --only teams`` times it; the agents' readers on its one thread), then the split: the
 env's steps (cameras drawn), the expert's privileged previews, the agents' readers (maps and
 inputs), resets and house building, the rest. Nothing is kept: the demos go to a temporary
-folder.
+folder. ``--callers`` adds who called the functions whose names match (``gc.collect``).
 """
 
 from __future__ import annotations
@@ -50,6 +51,7 @@ def main() -> None:
     p.add_argument("--dataset", default="data/tidy120")
     p.add_argument("--houses", type=int, default=2)
     p.add_argument("--top", type=int, default=30)
+    p.add_argument("--callers", help="regex of functions whose callers to print")
     args = p.parse_args()
     os.environ["TIDY_AGENT_THREADS"] = "1"  # cProfile sees only its own thread
     cfg = DemoConfig("I", "train", starts=1, tasks=1, houses=args.houses, env=args.env)
@@ -62,6 +64,8 @@ def main() -> None:
         wall = time.perf_counter() - start
     stats = pstats.Stats(profile)
     stats.sort_stats("tottime").print_stats(args.top)
+    if args.callers:
+        stats.print_callers(args.callers)
     n = m["trajectories"]
     print(f"demos --features on {args.env}: {n} trajectories, {wall:.1f} s (profiled)")
     named = 0.0

@@ -1,3 +1,4 @@
+import gc
 import gzip
 import json
 import shutil
@@ -6,8 +7,10 @@ import pytest
 
 from maniskill_tidy.cli import main
 from maniskill_tidy.common.files import sha256
+from maniskill_tidy.common.memory import collector_paused
 from maniskill_tidy.houses.generator import generate_house
 from maniskill_tidy.knowledge import FLOOR, load_placement
+from maniskill_tidy.tasks import dataset as tasks_dataset
 from maniskill_tidy.tasks.dataset import (
     DatasetError,
     dumps_gz,
@@ -119,6 +122,29 @@ def test_default_split_is_the_papers_4_1_1(small_dataset):
     test = load_dataset(small_dataset, "test")
     assert len(test.houses) == 2 and len(test.tasks) == 20
     assert len(list(test.episodes("I"))) == 100  # 10 meta-tasks x 5 starts per house
+
+
+def test_loading_pauses_the_collector_and_leaves_it_as_it_was(small_dataset, monkeypatch):
+    seen = []
+    real = tasks_dataset.house_from_dict
+
+    def spy(d):
+        seen.append(gc.isenabled())
+        return real(d)
+
+    monkeypatch.setattr(tasks_dataset, "house_from_dict", spy)
+    assert gc.isenabled()
+    load_dataset(small_dataset, "test")
+    assert seen and not any(seen) and gc.isenabled()  # paused while loading, on again after
+    gc.disable()
+    try:
+        load_dataset(small_dataset, "test")
+        assert not gc.isenabled()  # a caller who paused it keeps it paused
+    finally:
+        gc.enable()
+    with pytest.raises(RuntimeError), collector_paused():
+        raise RuntimeError("a shard fails to parse")
+    assert gc.isenabled()
 
 
 def test_generation_resumes_and_refuses_other_arguments(tmp_path, small_dataset):

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
+from maniskill_tidy.common.memory import collector_paused
 from maniskill_tidy.houses.schema import House
 from maniskill_tidy.tasks.dataset import load_dataset
 from maniskill_tidy.tasks.metatask import MetaTask
@@ -70,6 +71,13 @@ class EpisodeSet:
         self.setting = starts_setting(setting, team)
         tasks = [t for t in data.tasks if task_type == "all" or t.kind.lower() == task_type]
         self.episodes: list[Episode] = []
+        with collector_paused():  # thousands of episodes (common/memory.py)
+            self._add(tasks, team)
+        if not self.episodes:
+            raise ValueError(f"dataset {self.root} split {split!r} has no {task_type} tasks")
+        self._index = {e.id: i for i, e in enumerate(self.episodes)}
+
+    def _add(self, tasks: list[MetaTask], team: tuple[Capability, ...]) -> None:
         for task in tasks:
             if self.setting not in task.starts:
                 raise ValueError(
@@ -83,9 +91,6 @@ class EpisodeSet:
                         f"the team has {len(team)}"
                     )
                 self.episodes.append(Episode(task, j, starts[: len(team)]))
-        if not self.episodes:
-            raise ValueError(f"dataset {self.root} split {split!r} has no {task_type} tasks")
-        self._index = {e.id: i for i, e in enumerate(self.episodes)}
 
     @classmethod
     def for_setting(

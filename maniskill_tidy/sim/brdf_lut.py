@@ -23,28 +23,14 @@ from pathlib import Path
 import numpy as np
 import sapien
 
-from maniskill_tidy.sim import SHADERS
+from maniskill_tidy.sim import SHADERS, render_cache
 
 SIZE = 512  # svulkan2's table, whatever size is asked for (SVResourceManager::generateBRDFLUT)
 
 
-def _driver() -> str:
-    """SAPIEN, the render device and lavapipe's library file (path, size, time): another
-    driver, which may compute other bits, gets a table of its own."""
-    summary = sapien.render.get_device_summary()  # also loads the driver
-    try:
-        with open("/proc/self/maps") as maps:  # Linux: the libraries this process mapped
-            libraries = sorted({line.split()[-1] for line in maps if "libvulkan_lvp" in line})
-    except OSError:
-        libraries = []
-    files = [f"{p} {os.stat(p).st_size} {os.stat(p).st_mtime_ns}" for p in libraries]
-    return "\n".join([sapien.__version__, summary, *files])
-
-
 def cache_file() -> Path:
-    root = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
-    key = hashlib.sha256(_driver().encode()).hexdigest()[:16]
-    return root / "maniskill-tidy" / f"brdf-lut-{key}.npy"
+    key = hashlib.sha256(render_cache.driver().encode()).hexdigest()[:16]
+    return render_cache.cache_dir() / f"brdf-lut-{key}.npy"
 
 
 def read_back() -> np.ndarray:

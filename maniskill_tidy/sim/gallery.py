@@ -18,6 +18,7 @@ from maniskill_tidy import assets
 from maniskill_tidy.houses.furniture import TEMPLATES, parts_for
 from maniskill_tidy.houses.schema import Furniture, House
 from maniskill_tidy.knowledge import load_catalog
+from maniskill_tidy.sim import environment_map
 from maniskill_tidy.sim.furniture_shapes import Part, body_parts, link_parts
 from maniskill_tidy.sim.house_scene import add_part
 from maniskill_tidy.sim.realistic import DRESSING, WHY_PROCEDURAL, RealisticLook, model_scale
@@ -36,9 +37,7 @@ class Studio:
 
     def __init__(self) -> None:
         self.scene = sapien.Scene()
-        self.scene.render_system.cubemap = sapien.render.RenderCubemap(
-            str(assets.path("environment.hdr"))
-        )
+        self.scene.render_system.cubemap = environment_map.cubemap()
         self.scene.set_ambient_light([0.2, 0.2, 0.2])
         self.scene.add_directional_light([-0.4, -0.8, -1.0], [0.9, 0.9, 0.88])
         self.camera = self.scene.add_camera("studio", TILE, TILE, math.radians(35), 0.01, 50)

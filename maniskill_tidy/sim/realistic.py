@@ -20,6 +20,7 @@ import sapien
 
 from maniskill_tidy import assets
 from maniskill_tidy.houses.schema import Furniture, House, PlacedObject
+from maniskill_tidy.sim import environment_map
 from maniskill_tidy.sim.appearance import RGB, furniture_colour
 
 TILE = {"floor": 1.0, "wall": 1.5, "ceiling": 2.0}  # metres per texture repeat
@@ -224,7 +225,7 @@ class RealisticLook:
     def light(self, scene, shadows: bool) -> None:
         """Image-based ambient light from the environment map, a dim sun (it casts the shadows
         of quality "high") and the house's ceiling lights, one or two per room."""
-        cubemap = sapien.render.RenderCubemap(str(assets.path("environment.hdr")))
+        cubemap = environment_map.cubemap()  # prefiltered once per machine
         for sub in scene.sub_scenes:
             sub.render_system.cubemap = cubemap
         scene.set_ambient_light([0.12, 0.12, 0.12])

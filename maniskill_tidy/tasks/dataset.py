@@ -23,6 +23,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 from maniskill_tidy.common.files import sha256, write_atomic
+from maniskill_tidy.common.memory import collector_paused
 from maniskill_tidy.common.parallel import run_jobs
 from maniskill_tidy.houses.generator import generate_house
 from maniskill_tidy.houses.schema import SCHEMA_VERSION, House, house_from_dict
@@ -261,12 +262,13 @@ def load_dataset(root: Path, split: str = "train") -> Dataset:
     manifest = read_manifest(root)
     houses: dict[str, House] = {}
     tasks: list[MetaTask] = []
-    for name in sorted(manifest["files"]):
-        if not name.startswith(split + "/"):
-            continue
-        payload = read_shard(root / name, manifest["files"][name].get("sha256"))
-        for h in payload["houses"]:
-            house = house_from_dict(h)
-            houses[house.id] = house
-        tasks += [MetaTask.from_dict(t) for t in payload["tasks"]]
+    with collector_paused():
+        for name in sorted(manifest["files"]):
+            if not name.startswith(split + "/"):
+                continue
+            payload = read_shard(root / name, manifest["files"][name].get("sha256"))
+            for h in payload["houses"]:
+                house = house_from_dict(h)
+                houses[house.id] = house
+            tasks += [MetaTask.from_dict(t) for t in payload["tasks"]]
     return Dataset(root, split, manifest, houses, tasks)
