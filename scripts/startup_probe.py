@@ -6,8 +6,9 @@ Every run is a new interpreter, as an evaluation worker, a ``demos`` worker or a
 is: it times the imports, ``gym.make`` (ManiSkill's set-up, the first reset and its pictures)
 and a reset and step after it, in both looks, and prints the medians over the runs. SAPIEN
 computes its BRDF table at a process's first picture unless the cameras are lent the cached
-one (``sim/brdf_lut.py``). To compare commits, run it with ``PYTHONPATH`` set to another checkout.
-Nothing is written (the table's cache aside).
+one (``sim/brdf_lut.py``), and in v2 prefilters the environment map unless it is loaded from
+the cache (``sim/environment_map.py``). To compare commits, run it with ``PYTHONPATH`` set to
+another checkout. Nothing is written (the caches aside).
 """
 
 from __future__ import annotations

@@ -178,6 +178,7 @@ def test_a_stopped_agents_camera_is_off(env, monkeypatch):
     monkeypatch.setattr(env, "_take_pictures", lambda cams: (drawn.append(list(cams)), take(cams)))
     env.reset(options={"episode": 0})
     last, _ = step_one(env, 0, Action.RotateLeft.value)
+    kept = {key: last["agent_0"][key].copy() for key in ("rgb", "depth", "segmentation")}
     obs, info = step_one(env, 0, Action.Stop.value)
     assert info["stopped"]["agent_0"]
     assert drawn[-1] == ["agent_1", "agent_2"]
@@ -186,9 +187,12 @@ def test_a_stopped_agents_camera_is_off(env, monkeypatch):
         obs, *_ = env.step({"agent_1": Action.RotateLeft.value, "agent_2": Action.RotateLeft.value})
         assert drawn[-1] == ["agent_1", "agent_2"]
         for key in ("rgb", "depth", "segmentation"):
-            assert np.array_equal(obs["agent_0"][key], last["agent_0"][key])
-            assert obs["agent_0"][key] is not before["agent_0"][key]
+            assert np.array_equal(obs["agent_0"][key], kept[key])
+            assert not np.shares_memory(obs["agent_0"][key], before["agent_0"][key])
             assert not np.array_equal(obs["agent_1"][key], before["agent_1"][key])
+            # a caller writing into what it was handed changes no later observation
+            before["agent_0"][key][...] = 0
+            last["agent_0"][key][...] = 0
     np.testing.assert_array_equal(obs["agent_0"]["pose"], last["agent_0"]["pose"])
     env.reset(options={"episode": 0})  # every camera draws again
     assert drawn[-1] == env.agent_names

@@ -86,3 +86,30 @@ def test_the_machines_own_two_process_ratio_is_measured_and_reported(monkeypatch
     monkeypatch.undo()
     real = team_benchmark.bench_machine(rounds=1)
     assert 0.3 < real["two_over_one"] < 3.0  # two real loops ran and timed themselves
+
+
+def test_the_demos_command_is_timed_in_a_fresh_interpreter_from_its_start(monkeypatch):
+    import json
+    import subprocess
+    import sys
+    import time
+
+    from maniskill_tidy.training import demos_benchmark
+
+    ran = []
+
+    def child(cmd, **kwargs):  # the new interpreter: 3 s from its start, 2 trajectories
+        ran.append(cmd)
+        clock[0] += 3.0
+        row = {"env_id": "HeteroTidy-v2", "trajectories": 2, "seconds": 0.5, "steady_s": 0.4,
+               "demos_hash": "abc"}  # fmt: skip
+        return subprocess.CompletedProcess(cmd, 0, stdout="a progress line\n" + json.dumps(row))
+
+    clock = [100.0]
+    monkeypatch.setattr(time, "perf_counter", lambda: clock[0])
+    monkeypatch.setattr(subprocess, "run", child)
+    row = demos_benchmark.bench_demos(dataset="data", env_id="HeteroTidy-v2")
+    assert ran[0][0] == sys.executable and json.loads(ran[0][-1]) == [2, "data", "HeteroTidy-v2"]
+    # the parent's clock, start-up included, not the child's own 0.5 s; the rest is the child's
+    assert row == {"env_id": "HeteroTidy-v2", "trajectories": 2, "seconds": 1.5, "steady_s": 0.4,
+                   "demos_hash": "abc"}  # fmt: skip

@@ -158,6 +158,7 @@ class HeteroTidyEnv(BaseEnv):
         self._episode: Episode | None = None
         self._last_seg: dict[str, np.ndarray] = {}
         self._drawn: set[str] = set()  # agents whose cameras have drawn in this episode
+        self._pictures: dict[str, dict[str, np.ndarray]] = {}  # each agent's last, read
         self._segmentation_cameras: dict[str, sapien.render.RenderCameraComponent] = {}
         kwargs.setdefault("render_backend", default_render_backend())
         kwargs.setdefault("obs_mode", "rgb+depth+segmentation")
@@ -350,6 +351,7 @@ class HeteroTidyEnv(BaseEnv):
         self.misplaced = [m.object for m in ep.task.misplaced]
         self.picked: set[str] = set()
         self._drawn = set()
+        self._pictures = {}
         self._t = 0
         self._solved_before = self._reasonable()
         for i in range(len(self.agents)):
@@ -637,9 +639,13 @@ class HeteroTidyEnv(BaseEnv):
         for i, a in enumerate(self.agents):
             cam = self._agent_camera(a.name)
             o = {}
-            if render:  # a camera that is off still holds its last pictures: read afresh
+            if render and a.name in live:
                 o = self._read_pictures(a.name)
+                self._pictures[a.name] = {k: v.copy() for k, v in o.items()}
                 self._drawn.add(a.name)
+            elif render:  # its camera is off: copies of its last pictures, kept apart from
+                # the arrays handed out (SAPIEN warns on every read of a camera not taken)
+                o = {k: v.copy() for k, v in self._pictures[a.name].items()}
             x, y = self.hs.house.navgrid.center(*a.cell)
             extrinsic = np.eye(4, dtype=np.float32)
             extrinsic[:3] = cam.get_extrinsic_matrix()
