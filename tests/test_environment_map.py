@@ -86,5 +86,12 @@ def test_the_map_is_prefiltered_once_then_read_from_the_cache(tmp_path, monkeypa
         environment_map.cubemap()
         assert made[-1] == str(assets.path(environment_map.SOURCE))
         assert path.read_bytes() == exported
+
+        blocked = tmp_path / "a file"
+        blocked.write_text("")
+        monkeypatch.setenv("XDG_CACHE_HOME", str(blocked))  # no cache can be made under it
+        environment_map.cubemap.cache_clear()
+        assert environment_map.cubemap() is not None  # prefiltered here, as SAPIEN would
+        assert made[-1] == str(assets.path(environment_map.SOURCE))
     finally:
         environment_map.cubemap.cache_clear()  # later tests read the user's cache again

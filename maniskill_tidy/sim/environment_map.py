@@ -62,9 +62,12 @@ def cubemap() -> sapien.render.RenderCubemap:
     if complete(path):
         return sapien.render.RenderCubemap(str(path))
     fresh = sapien.render.RenderCubemap(str(source))
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".ktx", delete=False) as tmp:
-        pass
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".ktx", delete=False) as tmp:
+            pass
+    except OSError:  # no cache to write to: this process prefilters for itself
+        return fresh
     try:
         fresh.export(tmp.name)  # uploads, and so prefilters, the fresh map first
         os.replace(tmp.name, path)  # atomic: two workers may write it at once
