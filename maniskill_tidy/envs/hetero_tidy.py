@@ -157,7 +157,6 @@ class HeteroTidyEnv(BaseEnv):
         self.hs: HouseScene | None = None
         self._episode: Episode | None = None
         self._last_seg: dict[str, np.ndarray] = {}
-        self._drawn: set[str] = set()  # agents whose cameras have drawn in this episode
         self._pictures: dict[str, dict[str, np.ndarray]] = {}  # each agent's last, read
         self._segmentation_cameras: dict[str, sapien.render.RenderCameraComponent] = {}
         kwargs.setdefault("render_backend", default_render_backend())
@@ -350,7 +349,6 @@ class HeteroTidyEnv(BaseEnv):
         ]
         self.misplaced = [m.object for m in ep.task.misplaced]
         self.picked: set[str] = set()
-        self._drawn = set()
         self._pictures = {}
         self._t = 0
         self._solved_before = self._reasonable()
@@ -631,8 +629,8 @@ class HeteroTidyEnv(BaseEnv):
     def get_obs(self, info: dict | None = None, unflattened: bool = False) -> dict:
         render = self._renders_every_step
         if render:
-            # a stopped agent's camera is off once it has drawn
-            live = [a.name for a in self.agents if not a.stopped or a.name not in self._drawn]
+            # a stopped agent's camera is off once it has pictures to keep
+            live = [a.name for a in self.agents if not a.stopped or a.name not in self._pictures]
             self.scene.update_render(update_sensors=True, update_human_render_cameras=False)
             self._take_pictures({n: self._agent_camera(n) for n in live})
         obs = {}
@@ -642,7 +640,6 @@ class HeteroTidyEnv(BaseEnv):
             if render and a.name in live:
                 o = self._read_pictures(a.name)
                 self._pictures[a.name] = {k: v.copy() for k, v in o.items()}
-                self._drawn.add(a.name)
             elif render:  # its camera is off: copies of its last pictures, kept apart from
                 # the arrays handed out (SAPIEN warns on every read of a camera not taken)
                 o = {k: v.copy() for k, v in self._pictures[a.name].items()}
