@@ -33,6 +33,7 @@ from maniskill_tidy.perception.map_grid import (
     OBSTACLE,
     MapFrame,
 )
+from maniskill_tidy.perception.map_kernels import merge_unique
 from maniskill_tidy.perception.map_sharing import share_maps
 from maniskill_tidy.perception.map_truth import box_cells, open_links
 from maniskill_tidy.perception.semantic_map import (
@@ -229,6 +230,20 @@ def test_point_stats_are_numpys_median_and_percentile():
         assert count[i] == len(pts)
         assert _bits(median[i]) == _bits(np.median(pts, axis=0))
         assert _bits(low[i]) == _bits(np.float32(np.percentile(pts[:, 2], LOW)))
+
+
+def test_merging_movable_voxels_is_numpys_union():
+    """The map's list of object voxels grows by merging, as ``np.union1d`` did: repeats within
+    and across the lists, either list empty, values past 2^32."""
+    rng = np.random.default_rng(2)
+    for n, m in [(0, 0), (0, 5), (7, 0), (1, 1), (300, 40), (5000, 900)]:
+        kept = np.unique(rng.integers(0, 3 * max(n, 1), n)) + 2**33
+        more = rng.integers(0, 3 * max(n, 1), m) + 2**33
+        if n and m:
+            more[: m // 2] = rng.choice(kept, m // 2)  # some already kept
+        got = merge_unique(kept, more)
+        assert got.dtype == np.int64
+        assert _bits(got) == _bits(np.union1d(kept, more))
 
 
 def test_image_boxes_are_the_extremes_of_each_ids_pixels():

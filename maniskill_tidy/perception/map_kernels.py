@@ -246,6 +246,26 @@ def object_voxel_centres(flat, voxels, movable, origin, cell, z_cell):
 
 
 @_jit
+def merge_unique(sorted_unique, more):
+    """``np.union1d(sorted_unique, more)`` for an ascending array without repeats: ``more``
+    is sorted and merged in, one pass instead of sorting both again (issue 48)."""
+    more = np.sort(more)
+    out = np.empty(len(sorted_unique) + len(more), sorted_unique.dtype)
+    i = j = n = 0
+    while i < len(sorted_unique) or j < len(more):
+        if j == len(more) or (i < len(sorted_unique) and sorted_unique[i] <= more[j]):
+            v = sorted_unique[i]
+            i += 1
+        else:
+            v = more[j]
+            j += 1
+        if n == 0 or out[n - 1] != v:
+            out[n] = v
+            n += 1
+    return out[:n]
+
+
+@_jit
 def clear_seen_through(flat, cam, depth, label, voxels, k, cell, see_through, unknown):
     """Clear the object voxels ``flat`` (centres ``cam`` in camera coordinates) that the frame
     shows something else at, or sees past by ``see_through``, unless something nearer hides

@@ -239,8 +239,10 @@ class SemanticMap:
         extra, extra_labels = densify(
             points, point_labels, pixels, seg, depth, self.config.cell, self.config.stride
         )
-        touched = self._fuse(points, point_labels, extra, extra_labels)
-        self._refresh_columns(np.union1d(touched, cleared) if len(cleared) else touched)
+        # a column re-read twice reads the same: no need to merge the two lists
+        self._refresh_columns(self._fuse(points, point_labels, extra, extra_labels))
+        if len(cleared):
+            self._refresh_columns(cleared)
         self.frames += 1
 
     def _fuse(self, points, labels, extra, extra_labels) -> np.ndarray:
@@ -252,7 +254,7 @@ class SemanticMap:
             origin, np.float32(self.config.cell), FLOOR_LABEL,
         )  # fmt: skip
         if len(moving):
-            self._movable_voxels = np.union1d(self._movable_voxels, moving)
+            self._movable_voxels = kernels.merge_unique(self._movable_voxels, moving)
         return touched
 
     def _mark_visible_floor(self, depth, intrinsics, extrinsics, pose) -> None:
