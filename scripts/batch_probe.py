@@ -7,7 +7,10 @@ frozen perception model, then times them as three batches of one per step agains
 three (one thread, as the team runs). Then the reason records would change: the last bits of a
 torch CPU linear layer's row for batches of 1 to 8 rows. Last, the decision's LSTM steps: torch
 runs them through oneDNN (its default on the CPU), which reorders the weights on every call;
-its native kernel is faster at a batch of one but gives other bits. Nothing is written.
+its native kernel is faster at a batch of one but gives other bits; and whether that shows in
+an episode: the team's steps in alternating blocks, the LSTMs on oneDNN and on the native
+kernel (``--blocks``; the native blocks play other bits, so only their time is read).
+Nothing is written.
 """
 
 from __future__ import annotations
@@ -55,6 +58,7 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--steps", type=int, default=40)
     p.add_argument("--dataset", default="data/tidy120")
+    p.add_argument("--blocks", type=int, default=8, help="alternating blocks of 20 team steps")
     args = p.parse_args()
     torch.set_num_threads(1)
     decision, model, calls = captured_inputs(args.steps, args.dataset)
@@ -84,6 +88,7 @@ def main() -> None:
     print("row 0 of a linear layer equals its batch-of-one bits for batches of 1..8:", same)
     print("row 0 independent of the other rows' values (batch of 8):", content)
     lstm_steps(decision.agents[0])
+    episode_lstm(args.dataset, args.blocks)
 
 
 def lstm_steps(agent: torch.nn.Module, steps: int = 200) -> None:
@@ -111,6 +116,42 @@ def lstm_steps(agent: torch.nn.Module, steps: int = 200) -> None:
         print(f"{name} LSTM ({lstm.input_size} -> {lstm.hidden_size}) per step: oneDNN "
               f"{t_onednn:.3f} ms, native {t_native:.3f} ms, same bits: "
               f"{torch.equal(onednn, native)}")  # fmt: skip
+
+
+def episode_lstm(dataset: str, blocks: int, size: int = 20) -> None:
+    """A hangrcom episode's team steps, blocks of ``size`` in turns with every LSTM on oneDNN
+    and on torch's native kernel (one thread, as the team runs): ms per team step of each."""
+    native = {"on": False}
+    forward = torch.nn.LSTM.forward
+
+    def switched(self, *a, **k):
+        if not native["on"]:
+            return forward(self, *a, **k)
+        with torch.backends.mkldnn.flags(enabled=False):
+            return forward(self, *a, **k)
+
+    torch.nn.LSTM.forward = switched
+    env, team = make_env(RunConfig("hangrcom", "I", "test", dataset, 1)), make_team("hangrcom")
+    i = select([e.start for e in env.unwrapped.episodes.episodes], 1)[0]
+    obs, info = env.reset(seed=i, options={"episode": i})
+    execution = Execution(team, env.unwrapped, i)
+    spent = {False: [], True: []}
+    for block in range(blocks + 1):  # the first block warms up and is not counted
+        native["on"] = block % 2 == 0
+        for _ in range(size):
+            start = time.perf_counter()
+            actions = execution.step(obs, info)
+            if block:
+                spent[native["on"]].append(time.perf_counter() - start)
+            obs, _, terminated, truncated, info = env.step(actions)
+            if terminated or truncated:
+                obs, info = env.reset(seed=i, options={"episode": i})
+                execution = Execution(team, env.unwrapped, i)
+    env.close()
+    torch.nn.LSTM.forward = forward
+    ms = {k: 1e3 * sum(v) / max(len(v), 1) for k, v in spent.items()}
+    print(f"in an episode, per team step ({blocks} blocks of {size} in turns): LSTMs on oneDNN "
+          f"{ms[False]:.2f} ms, native {ms[True]:.2f} ms")  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -9,9 +9,10 @@ the whole map state after every frame byte for byte (voxels, explored, top-down 
 last frame's points and ids, the movable voxels). Then times both on the same frames, in turns,
 and prints the ratio. A speed change to the map must report "identical states N/N".
 
-The reference module imports today's other modules (``map_kernels.py`` included): compare
-against a commit whose map calls today's kernels as they are, or against one before the
-kernels (82e28be, the numpy map every committed record was made with).
+The reference map runs on the reference commit's own ``map_kernels.py`` where it has one
+(loaded beside today's, compiled into a temporary directory), and on today's other modules:
+compare against the last commit (the default), or against one before the kernels (82e28be,
+the numpy map every committed record was made with).
 """
 
 from __future__ import annotations
@@ -49,11 +50,24 @@ class Frames:
 
 
 def reference_module(commit: str):
-    source = subprocess.run(
-        ["git", "-C", str(REPO), "show", f"{commit}:maniskill_tidy/perception/semantic_map.py"],
-        capture_output=True, text=True, check=True,
-    ).stdout  # fmt: skip
-    path = Path(tempfile.mkdtemp()) / "semantic_map_ref.py"
+    def show(path: str) -> str | None:
+        out = subprocess.run(["git", "-C", str(REPO), "show", f"{commit}:{path}"],
+                             capture_output=True, text=True)  # fmt: skip
+        return out.stdout if out.returncode == 0 else None
+
+    folder = Path(tempfile.mkdtemp())
+    source = show("maniskill_tidy/perception/semantic_map.py")
+    if source is None:
+        raise SystemExit(f"map_update_ab.py: commit {commit!r} has no semantic_map.py")
+    kernels = show("maniskill_tidy/perception/map_kernels.py")
+    if kernels is not None:  # numba caches a module it can import by name: put it on the path
+        (folder / "map_kernels_ref.py").write_text(kernels)
+        sys.path.insert(0, str(folder))
+        source = source.replace(
+            "from maniskill_tidy.perception import map_kernels as kernels",
+            "import map_kernels_ref as kernels",
+        )
+    path = folder / "semantic_map_ref.py"
     path.write_text(source)
     spec = importlib.util.spec_from_file_location("semantic_map_ref", path)
     module = importlib.util.module_from_spec(spec)

@@ -32,6 +32,29 @@ def test_a_replay_that_diverges_is_noticed():
         env.close()
 
 
+def test_the_warm_up_step_leaves_the_timed_episode_as_a_cold_team_plays_it():
+    """The bench takes one step of throwaway agents before its clock: a team that kept
+    anything of them (a cache, a message, a random state) would play its first timed episode
+    otherwise."""
+    from dataclasses import asdict
+
+    from maniskill_tidy.eval.episode import Execution, play_episode
+    from maniskill_tidy.eval.runner import RunConfig, make_env
+    from maniskill_tidy.policies import make_team
+
+    env = make_env(RunConfig("heuristic-broadcast", "I", "test", None, 1))
+    try:
+        cold = asdict(play_episode(env, make_team("heuristic-broadcast"), 0, 0))
+        team = make_team("heuristic-broadcast")
+        obs, info = env.reset(seed=0, options={"episode": 0})
+        Execution(team, env.unwrapped, 0).step(obs, info)
+        warm = asdict(play_episode(env, team, 0, 0))
+    finally:
+        env.close()
+    cold.pop("seconds"), warm.pop("seconds")
+    assert warm == cold and cold["comm"] > 0
+
+
 @pytest.mark.parametrize("policy", ["random"])
 def test_the_report_names_each_team(policy):
     from maniskill_tidy.eval.team_benchmark import report
