@@ -44,10 +44,10 @@ def _instances(frame: FramePoints, instances: dict, kind: str) -> list[tuple[int
     pixels (a point of a strided back-projection stands for stride^2 pixels), ids ascending."""
     ids, counts = frame.id_counts
     out = []
-    for sid, n in zip(ids, counts, strict=True):
-        inst = instances.get(int(sid))
+    for sid, n in zip(ids.tolist(), counts.tolist(), strict=True):  # Python ints: cheaper
+        inst = instances.get(sid)
         if inst is not None and inst.kind == kind and n * frame.stride**2 >= MIN_PIXELS:
-            out.append((int(sid), inst))
+            out.append((sid, inst))
     return out
 
 

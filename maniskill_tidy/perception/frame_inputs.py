@@ -83,8 +83,9 @@ def image_boxes(seg, ids):
 
 def camera_pitch(extrinsics: np.ndarray) -> int:
     """The camera's horizon in degrees (positive looks down), read off its world pose."""
-    forward = np.asarray(extrinsics)[2, :3]  # OpenCV z axis in world coordinates
-    return int(round(np.degrees(-np.arcsin(np.clip(forward[2], -1, 1))) / 30.0)) * 30
+    up = np.asarray(extrinsics)[2, 2]  # the OpenCV z axis's world z (numpy's scalar type)
+    # min and max clip as np.clip does (NaN too), without its dispatch on a scalar
+    return int(round(np.degrees(-np.arcsin(min(max(up, -1), 1))) / 30.0)) * 30
 
 
 class FrameReader:

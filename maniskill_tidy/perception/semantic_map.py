@@ -200,6 +200,7 @@ class SemanticMap:
             int(math.ceil(OBSTACLE_BAND[1] / self.config.cell)),
         )
         self.frames = 0
+        self._corner_rays: tuple = (None, None)  # (intrinsics and shape, camera-frame rays)
         self.last_frame = FramePoints(np.zeros((0, 3)), np.zeros(0, np.int64), np.zeros(3))
 
     @property
@@ -225,15 +226,16 @@ class SemanticMap:
                 f"segmentation id {int(top)} is not in this map's instance table "
                 f"({len(self.labels)} ids): the map belongs to another house"
             )
-        self._mark_visible_floor(depth, obs["intrinsics"], obs["extrinsics"], obs.get("pose"))
+        camera = camera_position(obs["extrinsics"])
+        self._mark_visible_floor(
+            depth, obs["intrinsics"], obs["extrinsics"], obs.get("pose"), camera
+        )
         # Every pixel with a depth is back-projected once; robots, the held object and empty
         # space (label UNKNOWN) stay out of the map but are kept in ``last_frame``.
         all_points, point_seg, points, point_labels, pixels = backproject(
             depth, label, obs, self.config
         )
-        self.last_frame = FramePoints(
-            all_points, point_seg, camera_position(obs["extrinsics"]), self.config.stride
-        )
+        self.last_frame = FramePoints(all_points, point_seg, camera, self.config.stride)
         depth = labelled_depth  # robots, the held object and empty space: no depth
         cleared = self._clear_seen_through(depth, label, obs["intrinsics"], obs["extrinsics"])
         extra, extra_labels = densify(
@@ -257,13 +259,12 @@ class SemanticMap:
             self._movable_voxels = kernels.merge_unique(self._movable_voxels, moving)
         return touched
 
-    def _mark_visible_floor(self, depth, intrinsics, extrinsics, pose) -> None:
+    def _mark_visible_floor(self, depth, intrinsics, extrinsics, pose, camera) -> None:
         """Explored: cells whose centre, on the floor, falls on a pixel that sees the floor.
         Floor seen at a grazing angle has a few pixels per cell and whole cells between pixel
         rows; this fills them without counting floor hidden behind furniture."""
         ext = np.asarray(extrinsics, dtype=np.float64)
         k = np.asarray(intrinsics, dtype=np.float64)
-        camera = camera_position(ext)
         reach = self.config.max_depth
         r0, r1, c0, c1 = self._view_window(camera, ext, k, depth.shape, reach)
         r, c, xyz = kernels.unexplored_cells(
@@ -282,14 +283,14 @@ class SemanticMap:
     def _view_window(self, camera, ext, k, shape, reach) -> tuple[int, int, int, int]:
         """First and last rows and columns of the box around what the camera sees within ``reach``:
         the camera and the horizontal rays through the image's corners and centre."""
-        h, w = shape
-        pixels = np.array([[0, 0], [w, 0], [0, h], [w, h], [w / 2, h / 2]], dtype=np.float64)
-        rays = (
-            np.column_stack(
+        key = (k.tobytes(), shape)
+        if self._corner_rays[0] != key:  # a camera's own: made once, not every frame
+            h, w = shape
+            pixels = np.array([[0, 0], [w, 0], [0, h], [w, h], [w / 2, h / 2]], dtype=np.float64)
+            self._corner_rays = key, np.column_stack(
                 [(pixels[:, 0] - k[0, 2]) / k[0, 0], (pixels[:, 1] - k[1, 2]) / k[1, 1], np.ones(5)]
-            )
-            @ ext[:3, :3]
-        )  # camera rays in world coordinates (rows of R^T applied)
+            )  # fmt: skip
+        rays = self._corner_rays[1] @ ext[:3, :3]  # in world coordinates (rows of R^T applied)
         return kernels.view_window(
             camera, rays, reach, 2 * self.config.cell, self._origin, self.frame.cell,
             *self.frame.shape,

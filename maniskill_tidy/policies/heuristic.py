@@ -150,34 +150,24 @@ class HeuristicAgent(JobChoice, Agent):
             self.objects[d.object_id] = Known(d.object_id, d.seg_id, d.type, d.position, misplaced)
             self.sees_misplaced |= misplaced
             seen.add(d.object_id)
-        self._forget_moved(o, seen)
+        view = _camera_view(o)
+        self._forget_moved(view, seen)
         here = np.asarray(nav.center(*self.state.cell))
         for r in list(self.reports):
             if self._matches_known(r):
                 self.reports.remove(r)
-            elif np.hypot(*(np.asarray(r.xy) - here)) < COVER_RANGE and self._looked_at(r, o):
+            elif np.hypot(*(np.asarray(r.xy) - here)) < COVER_RANGE and self._looked_at(r, view):
                 self.reports.remove(r)  # in clear view and not there: a stale report
                 self.dismissed.append(r)
 
-    def _forget_moved(self, o: dict, seen: set[str]) -> None:
+    def _forget_moved(self, view: tuple, seen: set[str]) -> None:
         """Known objects whose spot is in clear view but which were not detected have moved."""
         for oid, k in list(self.objects.items()):
-            if oid not in seen and self._in_clear_view(k.position, o):
+            if oid not in seen and _in_clear_view(k.position, view):
                 del self.objects[oid]
 
-    def _in_clear_view(self, point, o: dict) -> bool:
-        ext, intr = np.asarray(o["extrinsics"], float), np.asarray(o["intrinsics"], float)
-        cam = ext[:3, :3] @ np.asarray(point, float) + ext[:3, 3]
-        if not 0.2 < cam[2] < COVER_RANGE:
-            return False
-        u, v = intr[0, 0] * cam[0] / cam[2] + intr[0, 2], intr[1, 1] * cam[1] / cam[2] + intr[1, 2]
-        h, w = o["depth"].shape
-        if not (5 <= u < w - 5 and 5 <= v < h - 5):
-            return False
-        return bool(o["depth"][int(v), int(u)] > cam[2] - 0.1)  # nothing in front of it
-
-    def _looked_at(self, r: Report, o: dict) -> bool:
-        return any(self._in_clear_view([*r.xy, z], o) for z in (0.05, 0.45, 0.85))
+    def _looked_at(self, r: Report, view: tuple) -> bool:
+        return any(_in_clear_view([*r.xy, z], view) for z in (0.05, 0.45, 0.85))
 
     def _matches_known(self, r: Report) -> bool:
         return any(
@@ -325,6 +315,26 @@ class HeuristicAgent(JobChoice, Agent):
             self.dismissed.append(self._looking)
         self.reports = [r for r in self.reports if r is not self._looking]
         self._looking = None
+
+
+def _camera_view(o: dict) -> tuple:
+    """What ``_in_clear_view`` reads of a frame, converted once per frame: the world-to-camera
+    rotation and shift (float64), the intrinsics and the depth."""
+    ext = np.asarray(o["extrinsics"], float)
+    return ext[:3, :3], ext[:3, 3], np.asarray(o["intrinsics"], float), o["depth"]
+
+
+def _in_clear_view(point, view: tuple) -> bool:
+    """The point is in the picture, within COVER_RANGE, with nothing in front of it."""
+    rotation, shift, intr, depth = view
+    cam = rotation @ np.asarray(point, float) + shift
+    if not 0.2 < cam[2] < COVER_RANGE:
+        return False
+    u, v = intr[0, 0] * cam[0] / cam[2] + intr[0, 2], intr[1, 1] * cam[1] / cam[2] + intr[1, 2]
+    h, w = depth.shape
+    if not (5 <= u < w - 5 and 5 <= v < h - 5):
+        return False
+    return bool(depth[int(v), int(u)] > cam[2] - 0.1)  # nothing in front of it
 
 
 class HeuristicTeam(Team):
