@@ -56,9 +56,9 @@ def bench_team(policy: str, episodes: int = 3, dataset: str | None = None,
         chosen = select([e.start for e in env.unwrapped.episodes.episodes], episodes)
         # A team's first step in a process pays what a process pays once: a learned team
         # loads its models (seconds of imports) when its first agents are made, the map's
-        # kernels load from numba's cache at their first call, torch sets up its kernels
-        # (0.4-0.9 s in all). Take one step of throwaway agents before the clock starts, so
-        # the figure is per episode: the agents of every timed episode are made afresh.
+        # kernels load from numba's cache at their first call, torch sets up its kernels.
+        # Take one step of throwaway agents before the clock starts, so the figure is per
+        # episode: the agents of every timed episode are made afresh.
         obs, info = env.reset(seed=chosen[0], options={"episode": chosen[0]})
         Execution(team, env.unwrapped, chosen[0]).step(obs, info)
         for i in chosen:
