@@ -72,6 +72,32 @@ def bench_procthor_generation(source: Path, workers: int) -> dict:
     }
 
 
+LOOKS = {"v1": "HeteroTidy-v1", "v2": "HeteroTidy-v2"}
+
+
+def _teams(text: str) -> tuple[str, ...]:
+    """``--teams``: registered policies or agent configs, comma-separated."""
+    from maniskill_tidy.policies import team_class
+
+    names = tuple(t.strip() for t in text.split(",") if t.strip())
+    if not names:
+        raise argparse.ArgumentTypeError("expected one or more team names, comma-separated")
+    for name in names:
+        try:
+            team_class(name)
+        except ValueError as e:
+            raise argparse.ArgumentTypeError(str(e)) from None
+    return names
+
+
+def _looks(text: str) -> tuple[str, ...]:
+    """``--looks``: v1, v2 or both, comma-separated."""
+    names = tuple(t.strip() for t in text.split(",") if t.strip())
+    if not names or any(n not in LOOKS for n in names):
+        raise argparse.ArgumentTypeError(f"expected {' and/or '.join(LOOKS)}, got {text!r}")
+    return tuple(LOOKS[n] for n in names)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--houses", type=int, default=120)
@@ -90,6 +116,19 @@ def main(argv: list[str] | None = None) -> int:
         default=None,
     )
     parser.add_argument("--eval-dataset", help="dataset for the eval row (default: shipped one)")
+    parser.add_argument(
+        "--teams", type=_teams, default=None,
+        help="teams bench: the teams to time, comma-separated (policies or agents/*.yaml; "
+        "default: heuristic-none, heuristic-broadcast, hangrcom)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--looks", type=_looks, default=("HeteroTidy-v1", "HeteroTidy-v2"),
+        help="teams bench: v1, v2 or both (default), for the team and demos rows",
+    )  # fmt: skip
+    parser.add_argument(
+        "--skip", nargs="+", default=(), choices=("workers", "machine", "demos"),
+        help="teams bench: parts to leave out (the 2-worker rows take most of its time)",
+    )  # fmt: skip
     parser.add_argument(
         "--procthor",
         default=str(SAMPLE),
@@ -120,12 +159,11 @@ def main(argv: list[str] | None = None) -> int:
         )
         from maniskill_tidy.training.demos_benchmark import bench_demos
 
-        looks = ("HeteroTidy-v1", "HeteroTidy-v2")
-        data = args.eval_dataset
-        rows = [bench_team(team, dataset=data, env_id=v) for v in looks for team in TEAMS]
-        workers = [bench_workers(team, dataset=data) for team in TEAMS]
-        machine = bench_machine()
-        demos = [bench_demos(dataset=data, env_id=v) for v in looks]
+        teams, looks, skip, data = args.teams or TEAMS, args.looks, args.skip, args.eval_dataset
+        rows = [bench_team(team, dataset=data, env_id=v) for v in looks for team in teams]
+        workers = [] if "workers" in skip else [bench_workers(t, dataset=data) for t in teams]
+        machine = None if "machine" in skip else bench_machine()
+        demos = [] if "demos" in skip else [bench_demos(dataset=data, env_id=v) for v in looks]
         print(report(rows, workers, demos, machine))
         print()
         if args.only == "teams":

@@ -136,3 +136,43 @@ def test_the_demos_command_is_timed_in_a_fresh_interpreter_from_its_start(monkey
     # the parent's clock, start-up included, not the child's own 0.5 s; the rest is the child's
     assert row == {"env_id": "HeteroTidy-v2", "trajectories": 2, "seconds": 1.5, "steady_s": 0.4,
                    "demos_hash": "abc"}  # fmt: skip
+
+
+def test_the_bench_times_the_teams_and_looks_asked_for(monkeypatch, capsys):
+    """``bench --only teams --teams ... --looks ... --skip ...``: only those rows are run."""
+    from maniskill_tidy import bench
+    from maniskill_tidy.eval import team_benchmark
+    from maniskill_tidy.training import demos_benchmark
+
+    ran = []
+
+    def row(team, dataset=None, env_id="HeteroTidy-v1"):
+        ran.append((team, env_id))
+        return {"team": team, "env_id": env_id, "episodes": 3, "team_s": 2.0, "env_s": 1.0,
+                "ratio": 2.0}  # fmt: skip
+
+    def refused(*a, **k):
+        raise AssertionError("a skipped part ran")
+
+    monkeypatch.setattr(team_benchmark, "bench_team", row)
+    monkeypatch.setattr(team_benchmark, "bench_workers", refused)
+    monkeypatch.setattr(team_benchmark, "bench_machine", refused)
+    monkeypatch.setattr(demos_benchmark, "bench_demos", refused)
+    argv = ["--only", "teams", "--teams", "random,heuristic-none", "--looks", "v2",
+            "--skip", "workers", "machine", "demos"]  # fmt: skip
+    assert bench.main(argv) == 0
+    assert ran == [("random", "HeteroTidy-v2"), ("heuristic-none", "HeteroTidy-v2")]
+    out = capsys.readouterr().out
+    assert "heuristic-none" in out and "2 workers" not in out and "HeteroTidy-v1" not in out
+
+
+@pytest.mark.parametrize(
+    "flag, value, said",
+    [("--teams", "nobody", "unknown policy 'nobody'"), ("--looks", "v3", "expected v1")],
+)
+def test_the_bench_refuses_unknown_teams_and_looks(flag, value, said, capsys):
+    from maniskill_tidy import bench
+
+    with pytest.raises(SystemExit) as e:
+        bench.main(["--only", "teams", flag, value])
+    assert e.value.code == 2 and said in capsys.readouterr().err

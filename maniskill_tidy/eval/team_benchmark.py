@@ -163,8 +163,9 @@ def report(
             f"{r['env_s']:>8.2f} {r['ratio']:>6.2f}"
         )
     # one process already keeping c cores busy, two on 2 cores can do at most 2 / c as much
-    lines.append(f"{'team':>20} {'episodes':>8} {'2 workers / 1':>14} {'steady':>7} "
-                 f"{'cores busy 1 / 2':>17} {'2 / cores 1':>11}")  # fmt: skip
+    if workers:
+        lines.append(f"{'team':>20} {'episodes':>8} {'2 workers / 1':>14} {'steady':>7} "
+                     f"{'cores busy 1 / 2':>17} {'2 / cores 1':>11}")  # fmt: skip
     for w in workers:
         lines.append(
             f"{w['team']:>20} {w['episodes']:>8} {w['two_over_one']:>14.2f} "
