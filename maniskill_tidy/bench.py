@@ -122,12 +122,12 @@ def main(argv: list[str] | None = None) -> int:
         "default: heuristic-none, heuristic-broadcast, hangrcom)",
     )  # fmt: skip
     parser.add_argument(
-        "--looks", type=_looks, default=("HeteroTidy-v1", "HeteroTidy-v2"),
+        "--looks", type=_looks, default=tuple(LOOKS.values()),
         help="teams bench: v1, v2 or both (default), for the team and demos rows",
     )  # fmt: skip
     parser.add_argument(
         "--skip", nargs="+", default=(), choices=("workers", "machine", "demos"),
-        help="teams bench: parts to leave out (the 2-worker rows take most of its time)",
+        help="teams bench: parts to leave out (the 2-worker rows play 12 episodes per team)",
     )  # fmt: skip
     parser.add_argument(
         "--procthor",
