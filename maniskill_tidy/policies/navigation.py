@@ -70,7 +70,10 @@ class GridPlanner:
         squared = ((self._cells - np.asarray(point)) ** 2).sum(axis=1)
         order = np.argsort(squared, kind="stable")
         bounds = np.flatnonzero(np.diff(squared[order])) + 1
-        for ring in np.split(order, bounds):  # the cells at one distance from the point
+        # the cells at one distance from the point, ring by ring (np.split would cut them all
+        # up front, a thousand arrays for the first few rings that are read)
+        for lo, hi in zip([0, *bounds.tolist()], [*bounds.tolist(), len(order)], strict=True):
+            ring = order[lo:hi]
             moves = {c: reach[c] for c in map(tuple, self._cells[ring].tolist()) if c in reach}
             if moves:
                 return min(moves, key=lambda c: (np.hypot(c[0] - point[0], c[1] - point[1]),
