@@ -108,6 +108,15 @@ def test_train_refuses_a_folder_that_is_not_a_dataset(tmp_path):
     assert not (tmp_path / "a").exists()
 
 
+def test_train_refuses_encoder_widths_that_are_not_four_channel_counts(tmp_path):
+    for bad in ("16,32,48", "16,32,x,64", "16,0,48,64"):
+        one_line_error(
+            cli("train", "perception", "--visual-widths", bad, "--out", str(tmp_path / "a")),
+            "--visual-widths", "four positive channel counts",
+        )  # fmt: skip
+    assert not (tmp_path / "a").exists()
+
+
 def test_perception_report_without_agents_names_the_command(tmp_path):
     one_line_error(
         cli("perception-report", "--agents", str(tmp_path / "none"), "--work", str(tmp_path)),

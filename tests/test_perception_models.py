@@ -265,6 +265,38 @@ def test_checkpoint_round_trip(houses, views, tmp_path):
     assert size < 10e6  # fp16: the agents/ folder stays small
 
 
+def test_cheaper_encoders_are_built_saved_and_named_as_asked(houses, tmp_path):
+    from maniskill_tidy.training.perception_trainer import model_card
+
+    train = TrainConfig(visual_widths=(8, 16, 24, 32), scene_widths=(8, 16, 16, 40))
+    model = new_model(houses, True, train).eval()
+    convs = [m.out_channels for m in model.visual.conv if isinstance(m, torch.nn.Conv2d)]
+    assert convs == [8, 16, 24, 32]
+    convs = [m.out_channels for m in model.scene.conv if isinstance(m, torch.nn.Conv2d)]
+    assert convs == [8, 16, 16, 40]
+    assert model.sv(torch.zeros(2, 64, 64, 3, dtype=torch.uint8)).shape == (2, 256)
+    assert model.sm(torch.zeros(2, 20, 20, K + 2, dtype=torch.uint8)).shape == (2, 256)
+    shipped = new_model(houses, True)
+    count = lambda m: sum(p.numel() for p in m.parameters())  # noqa: E731
+    assert count(model.visual) < count(shipped.visual) / 4
+    assert count(model.scene) < count(shipped.scene) / 3
+    save_perception(model, tmp_path / "agent")  # config.json holds the widths as lists
+    loaded = load_perception(tmp_path / "agent")
+    assert loaded.cfg == model.cfg and loaded.cfg.scene_widths == (8, 16, 16, 40)
+    # its own checkpoints, apart from the shipped widths'
+    assert train.checkpoints(tmp_path) != TrainConfig().checkpoints(tmp_path)
+    card = {"variant": "knowledge", "knowledge": True, "config": {**vars(train), "env": "x"},
+            "dataset_hash": "0" * 12, "views_hash": "0" * 12, "code_version": "c", "seed": 0,
+            "views": {"train_frames": 1, "train_detections": 1}, "views_seconds": 1,
+            "train_seconds": 1, "stages": {}}  # fmt: skip
+    text = model_card(json.loads(json.dumps(card)))  # as read back from card.json
+    assert "--visual-widths 8,16,24,32 --scene-widths 8,16,16,40" in text
+    assert "| 8-16-24-32 / 8-16-16-40 |" in text
+    card["config"] = vars(TrainConfig())
+    text = model_card(json.loads(json.dumps(card)))
+    assert "`maniskill-tidy train perception` (`make train`)" in text and "--visual" not in text
+
+
 def test_views_refuse_another_configuration(views_dir, tmp_path):
     (tmp_path / "train").mkdir()
     manifest = (views_dir / "train" / "manifest.json").read_text()

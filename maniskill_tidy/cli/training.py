@@ -9,7 +9,22 @@ from maniskill_tidy.cli.options import env_option, ray_option
 
 TRAIN_DEFAULTS = {"dataset": "data/tidy120", "out": "agents/perception",
                   "work": "data/perception", "seed": 0, "workers": 2,
-                  "env": "HeteroTidy-v1"}  # fmt: skip
+                  "env": "HeteroTidy-v1", "visual_widths": None,
+                  "scene_widths": None}  # fmt: skip
+
+
+def widths(option: str, text: str | None) -> dict:
+    """``--visual-widths 16,32,48,64`` as TrainConfig's field (nothing: the shipped widths)."""
+    if text is None:
+        return {}
+    try:
+        values = tuple(int(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != 4 or min(values) < 1:
+        raise ValueError(f"--{option} {text!r}: expected four positive channel counts, e.g. "
+                         "16,32,48,64")  # fmt: skip
+    return {option.replace("-", "_"): values}
 
 
 def _demos(args: argparse.Namespace) -> int:
@@ -49,7 +64,7 @@ def _train(args: argparse.Namespace) -> int:
     from maniskill_tidy.training.qmix_trainer import train_qmix
 
     if args.what != "perception":  # an agent config says where its model goes: eval reads it
-        given = [f"--{k}" for k in TRAIN_DEFAULTS if getattr(args, k) is not None]
+        given = [f"--{k.replace('_', '-')}" for k in TRAIN_DEFAULTS if getattr(args, k) is not None]
         if given:
             raise ValueError(
                 f"{' '.join(given)} apply to `train perception`; an agent config sets them "
@@ -81,11 +96,14 @@ def _train(args: argparse.Namespace) -> int:
     from maniskill_tidy.tasks.dataset import read_manifest
     from maniskill_tidy.training.perception_trainer import TrainConfig, train_perception
 
+    cfg = TrainConfig(
+        seed=args.seed, env=args.env, **widths("visual-widths", args.visual_widths),
+        **widths("scene-widths", args.scene_widths),
+    )  # fmt: skip
     read_manifest(Path(args.dataset))  # a one-line error if it is not a dataset
     cards = train_perception(
-        Path(args.dataset), Path(args.out), Path(args.work),
-        TrainConfig(seed=args.seed, env=args.env), workers=args.workers,
-    )  # fmt: skip
+        Path(args.dataset), Path(args.out), Path(args.work), cfg, workers=args.workers
+    )
     for variant, card in cards.items():
         val = card["val"]
         print(
@@ -151,6 +169,14 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
         help="perception: the look the views are rendered in (HeteroTidy-v1)",
     )
     tr.add_argument("--workers", type=int, help="perception: processes rendering the views (2)")
+    tr.add_argument(
+        "--visual-widths",
+        help="perception: channels of the visual encoder's four convolutions (32,64,96,128)",
+    )
+    tr.add_argument(
+        "--scene-widths",
+        help="perception: channels of the scene encoder's four convolutions (32,64,64,128)",
+    )
     tr.set_defaults(func=_train)
 
     pr = sub.add_parser(

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import torch
 from torch import nn
 
+from maniskill_tidy.models import scene_encoder, visual_encoder
 from maniskill_tidy.models.commonsense import CommonsenseAttention, KnowledgeGCN
 from maniskill_tidy.models.detection_encoder import DetectionEncoder
 from maniskill_tidy.models.knowledge_graph import KnowledgeGraph
@@ -38,6 +39,14 @@ class PerceptionConfig:
     crop: int = 20  # G
     dim: int = 256
     knowledge: bool = True
+    # the encoders' channels; the shipped models use the defaults, cheaper ones fewer
+    # (``train perception --widths``, issue 48)
+    visual_widths: tuple[int, ...] = visual_encoder.WIDTHS
+    scene_widths: tuple[int, ...] = scene_encoder.WIDTHS
+
+    def __post_init__(self) -> None:  # a config read back from JSON holds lists
+        object.__setattr__(self, "visual_widths", tuple(self.visual_widths))
+        object.__setattr__(self, "scene_widths", tuple(self.scene_widths))
 
 
 @dataclass
@@ -59,9 +68,9 @@ class PerceptionModel(nn.Module):
         super().__init__()
         self.cfg = cfg
         d = cfg.dim
-        self.visual = VisualEncoder(d)
+        self.visual = VisualEncoder(d, cfg.visual_widths)
         self.visible = nn.Linear(d, cfg.categories)  # the visual encoder's pre-training head
-        self.scene = SceneEncoder(cfg.categories + 2, cfg.crop, d)
+        self.scene = SceneEncoder(cfg.categories + 2, cfg.crop, d, cfg.scene_widths)
         self.queries = RegionQueries(cfg.regions, cfg.categories, d)
         self.room_classifier = RoomClassifier(cfg.categories, d)
         self.detection = DetectionEncoder(type_vectors, cfg.receptacles, dim=d)

@@ -10,18 +10,25 @@ from __future__ import annotations
 import torch
 from torch import nn
 
+WIDTHS = (32, 64, 64, 128)  # a 1 x 1 mix of the channels, then three 3 x 3 convolutions
+
 
 class SceneEncoder(nn.Module):
-    def __init__(self, channels: int, size: int = 20, dim: int = 256) -> None:
+    def __init__(
+        self, channels: int, size: int = 20, dim: int = 256, widths: tuple[int, ...] = WIDTHS
+    ) -> None:
         super().__init__()
+        if len(widths) != 4:
+            raise ValueError(f"SceneEncoder widths: 4 channel counts expected, got {widths}")
+        w0, w1, w2, w3 = widths
         self.conv = nn.Sequential(
-            nn.Conv2d(channels, 32, 1), nn.ReLU(),  # per-cell mix of the K + 2 channels
-            nn.Conv2d(32, 64, 3, padding=1), nn.ReLU(),
-            nn.Conv2d(64, 64, 3, stride=2, padding=1), nn.ReLU(),
-            nn.Conv2d(64, 128, 3, stride=2, padding=1), nn.ReLU(),
+            nn.Conv2d(channels, w0, 1), nn.ReLU(),  # per-cell mix of the K + 2 channels
+            nn.Conv2d(w0, w1, 3, padding=1), nn.ReLU(),
+            nn.Conv2d(w1, w2, 3, stride=2, padding=1), nn.ReLU(),
+            nn.Conv2d(w2, w3, 3, stride=2, padding=1), nn.ReLU(),
         )  # fmt: skip
         side = (size + 3) // 4
-        self.out = nn.Sequential(nn.Flatten(), nn.Linear(128 * side * side, dim), nn.ReLU())
+        self.out = nn.Sequential(nn.Flatten(), nn.Linear(w3 * side * side, dim), nn.ReLU())
 
     def forward(self, crop: torch.Tensor) -> torch.Tensor:
         """``crop``: (B, G, G, K + 2), 0/1 -> (B, dim)."""

@@ -12,18 +12,20 @@ import torch
 from torch import nn
 
 IMAGE = 64
+WIDTHS = (32, 64, 96, 128)  # channels of the four stride-2 convolutions (64 -> 4 pixels)
 
 
 class VisualEncoder(nn.Module):
-    def __init__(self, dim: int = 256) -> None:
+    def __init__(self, dim: int = 256, widths: tuple[int, ...] = WIDTHS) -> None:
         super().__init__()
-        self.conv = nn.Sequential(
-            nn.Conv2d(3, 32, 5, stride=2, padding=2), nn.ReLU(),  # 32
-            nn.Conv2d(32, 64, 3, stride=2, padding=1), nn.ReLU(),  # 16
-            nn.Conv2d(64, 96, 3, stride=2, padding=1), nn.ReLU(),  # 8
-            nn.Conv2d(96, 128, 3, stride=2, padding=1), nn.ReLU(),  # 4
-        )  # fmt: skip
-        self.out = nn.Sequential(nn.Flatten(), nn.Linear(128 * 4 * 4, dim), nn.ReLU())
+        if len(widths) != 4:
+            raise ValueError(f"VisualEncoder widths: 4 channel counts expected, got {widths}")
+        layers: list[nn.Module] = []
+        for i, (a, b) in enumerate(zip((3, *widths), widths, strict=False)):
+            k = 5 if i == 0 else 3  # 64 -> 32 -> 16 -> 8 -> 4
+            layers += [nn.Conv2d(a, b, k, stride=2, padding=k // 2), nn.ReLU()]
+        self.conv = nn.Sequential(*layers)
+        self.out = nn.Sequential(nn.Flatten(), nn.Linear(widths[-1] * 4 * 4, dim), nn.ReLU())
 
     def forward(self, rgb: torch.Tensor) -> torch.Tensor:
         """``rgb``: (B, 64, 64, 3) uint8 as the views store it -> (B, dim)."""

@@ -32,6 +32,7 @@ from tqdm import tqdm
 
 from maniskill_tidy.common.files import write_atomic
 from maniskill_tidy.knowledge import load_catalog
+from maniskill_tidy.models import scene_encoder, visual_encoder
 from maniskill_tidy.models.checkpoints import save_perception, type_vectors, weights_sha256
 from maniskill_tidy.models.knowledge_graph import build_graph
 from maniskill_tidy.models.perception import PerceptionConfig, PerceptionModel
@@ -57,6 +58,17 @@ class TrainConfig:
     tasks_per_house: dict = field(default_factory=lambda: {"train": 2, "val": 1, "test": 1})
     every: int = 3  # a frame every 3 steps per agent
     env: str = "HeteroTidy-v1"  # the look the views are rendered in (v2: realistic)
+    # the encoders' channels (``models/visual_encoder.py``, ``scene_encoder.py``): fewer make a
+    # cheaper model for a team's every step (issue 48)
+    visual_widths: tuple[int, ...] = visual_encoder.WIDTHS
+    scene_widths: tuple[int, ...] = scene_encoder.WIDTHS
+
+    def checkpoints(self, work: Path) -> Path:
+        """Where the stages' resumable checkpoints go: other widths keep their own."""
+        if (self.visual_widths, self.scene_widths) == (visual_encoder.WIDTHS, scene_encoder.WIDTHS):
+            return work / "checkpoints"
+        tag = "-".join(map(str, self.visual_widths)) + "_" + "-".join(map(str, self.scene_widths))
+        return work / f"checkpoints-{tag}"
 
 
 def _seeded(seed: int) -> None:
@@ -248,13 +260,18 @@ def fit_stage(
     }
 
 
-def new_model(train_houses: list, knowledge: bool) -> PerceptionModel:
+def new_model(
+    train_houses: list, knowledge: bool, train: TrainConfig | None = None
+) -> PerceptionModel:
     catalog = load_catalog()
+    train = train or TrainConfig()
     cfg = PerceptionConfig(
         categories=len(catalog.categories),
         receptacles=len(catalog.receptacles),
         regions=REGIONS**2,
         knowledge=knowledge,
+        visual_widths=tuple(train.visual_widths),
+        scene_widths=tuple(train.scene_widths),
     )
     return PerceptionModel(cfg, type_vectors(), build_graph(train_houses))
 
@@ -291,12 +308,12 @@ def train_perception(
     train, val = Views(load_views(views_root / "train")), Views(load_views(views_root / "val"))
     houses = list(load_dataset(dataset, "train").houses.values())
     priors = compute_priors(train)
-    checkpoints = work / "checkpoints"
+    checkpoints = cfg.checkpoints(work)
     cards: dict[str, dict] = {}
     shared: dict | None = None
     for variant, knowledge in VARIANTS.items():
         _seeded(cfg.seed)
-        model = new_model(houses, knowledge)
+        model = new_model(houses, knowledge, cfg)
         stages = {}
         if shared is None:
             for stage in ("visual", "scene"):
@@ -378,10 +395,16 @@ def model_card(card: dict) -> str:
     """The human-readable card next to a checkpoint."""
     val = card.get("val", {})
     look = card["config"].get("env", "HeteroTidy-v1")
-    if look == "HeteroTidy-v1":
-        made = "`maniskill-tidy train perception` (`make train`)"
+    defaults = {"visual": visual_encoder.WIDTHS, "scene": scene_encoder.WIDTHS}
+    widths = {k: tuple(card["config"].get(f"{k}_widths", d)) for k, d in defaults.items()}
+    options = f" --env {look}" if look != "HeteroTidy-v1" else ""
+    for k, w in widths.items():
+        if w != defaults[k]:
+            options += f" --{k}-widths {','.join(map(str, w))}"
+    if options:
+        made = f"`maniskill-tidy train perception{options} --out FOLDER`"
     else:
-        made = f"`maniskill-tidy train perception --env {look} --out FOLDER`"
+        made = "`maniskill-tidy train perception` (`make train`)"
     lines = [
         f"# {card['variant']}: the paper's perception and reasoning modules"
         + ("" if card["knowledge"] else " without the knowledge graph (w/o Know.)"),
@@ -392,6 +415,8 @@ def model_card(card: dict) -> str:
         "| | |",
         "|---|---|",
         f"| views rendered in | {look} |",
+        f"| encoder channels, visual / scene | {'-'.join(map(str, widths['visual']))} / "
+        f"{'-'.join(map(str, widths['scene']))} |",
         f"| dataset hash | `{card['dataset_hash'][:12]}` |",
         f"| views hash (train/val/test frames and detections) | `{card['views_hash'][:12]}` |",
         f"| code version | `{card['code_version']}` |",
