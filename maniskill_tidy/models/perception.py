@@ -40,7 +40,7 @@ class PerceptionConfig:
     dim: int = 256
     knowledge: bool = True
     # the encoders' channels; the shipped models use the defaults, cheaper ones fewer
-    # (``train perception --widths``, issue 48)
+    # (``train perception --visual-widths --scene-widths``, issue 48)
     visual_widths: tuple[int, ...] = visual_encoder.WIDTHS
     scene_widths: tuple[int, ...] = scene_encoder.WIDTHS
 

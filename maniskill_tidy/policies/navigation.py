@@ -69,10 +69,10 @@ class GridPlanner:
         reach = self.distances(source, blocked)
         squared = ((self._cells - np.asarray(point)) ** 2).sum(axis=1)
         order = np.argsort(squared, kind="stable")
-        bounds = np.flatnonzero(np.diff(squared[order])) + 1
+        bounds = (np.flatnonzero(np.diff(squared[order])) + 1).tolist()
         # the cells at one distance from the point, ring by ring (np.split would cut them all
         # up front, a thousand arrays for the first few rings that are read)
-        for lo, hi in zip([0, *bounds.tolist()], [*bounds.tolist(), len(order)], strict=True):
+        for lo, hi in zip([0, *bounds], [*bounds, len(order)], strict=True):
             ring = order[lo:hi]
             moves = {c: reach[c] for c in map(tuple, self._cells[ring].tolist()) if c in reach}
             if moves:

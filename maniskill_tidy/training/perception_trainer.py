@@ -270,8 +270,8 @@ def new_model(
         receptacles=len(catalog.receptacles),
         regions=REGIONS**2,
         knowledge=knowledge,
-        visual_widths=tuple(train.visual_widths),
-        scene_widths=tuple(train.scene_widths),
+        visual_widths=train.visual_widths,
+        scene_widths=train.scene_widths,
     )
     return PerceptionModel(cfg, type_vectors(), build_graph(train_houses))
 
