@@ -16,6 +16,7 @@ Nothing is written.
 from __future__ import annotations
 
 import argparse
+import os
 import time
 
 import torch
@@ -55,6 +56,8 @@ def batched(group: list[tuple]) -> tuple:
 
 
 def main() -> None:
+    # the agents think in this process, where the measuring wrappers are
+    os.environ["TIDY_AGENT_PROCESSES"] = "0"
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--steps", type=int, default=40)
     p.add_argument("--dataset", default="data/tidy120")

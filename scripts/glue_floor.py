@@ -15,6 +15,7 @@ alone is the issue's measure. Nothing is written.
 from __future__ import annotations
 
 import argparse
+import os
 import time
 
 import torch
@@ -60,6 +61,8 @@ def free_forwards(free: dict) -> None:
 
 
 def main() -> None:
+    # the agents think in this process, where the measuring wrappers are
+    os.environ["TIDY_AGENT_PROCESSES"] = "0"
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--policy", default="hangrcom")
     p.add_argument("--env", default="HeteroTidy-v1")

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import cProfile
+import os
 import pstats
 import time
 
@@ -21,6 +22,8 @@ from maniskill_tidy.policies import make_team
 
 
 def main() -> None:
+    # the agents think in this process, where the measuring wrappers are
+    os.environ["TIDY_AGENT_PROCESSES"] = "0"
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("policy")
     p.add_argument("--episodes", type=int, default=2)

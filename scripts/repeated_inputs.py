@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import hashlib
+import os
 import threading
 from collections import Counter
 
@@ -22,6 +23,8 @@ from maniskill_tidy.policies.learned import LearnedAgent
 
 
 def main() -> None:
+    # the agents think in this process, where the measuring wrappers are
+    os.environ["TIDY_AGENT_PROCESSES"] = "0"
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--policy", default="hangrcom")
     p.add_argument("--episodes", type=int, default=3)

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import time
 from collections import Counter
 
@@ -24,6 +25,8 @@ from maniskill_tidy.policies import make_team
 
 
 def main() -> None:
+    # the agents think in this process, where the measuring wrappers are
+    os.environ["TIDY_AGENT_PROCESSES"] = "0"
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("policy")
     p.add_argument("methods", nargs="+", help="module.Class.method to time")

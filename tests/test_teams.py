@@ -401,22 +401,62 @@ class _Actions:
         self.steps.append((dict(actions), dict(labels)))
 
 
-@pytest.mark.parametrize("policy", ["heuristic-broadcast", "hangrcom"])
-def test_agents_thinking_on_threads_act_as_on_one(policy, monkeypatch):
-    """The runner calls a thread-safe team's agents on several threads: every action, label
-    and message total is what one thread gives (no agent reads another's state)."""
+class _Traces(_Actions):
+    def start(self, env, team, channel) -> None:
+        super().start(env, team, channel)
+        self.traces: list = []
+
+    def traced(self, t, traces) -> None:
+        self.traces.append(traces)
+
+
+def _same_traces(a: tuple, b: tuple) -> None:
+    """Records and steps equal, traces too (their arrays bit for bit)."""
+    assert a[:2] == b[:2]
+    assert len(a[2]) == len(b[2])
+    for x, y in zip(a[2], b[2], strict=True):
+        assert x.keys() == y.keys()
+        for name in x:
+            assert x[name].keys() == y[name].keys()
+            for key, value in x[name].items():
+                if isinstance(value, np.ndarray):
+                    assert np.array_equal(value, y[name][key]), (name, key)
+                else:
+                    assert value == y[name][key], (name, key)
+
+
+@pytest.mark.parametrize("policy", ["heuristic-broadcast", "heuristic-central", "hangrcom"])
+def test_agents_thinking_on_threads_or_in_processes_act_as_on_one(policy, monkeypatch):
+    """The runner calls a thread-safe team's agents on several threads, or in a process per
+    agent (eval/agent_processes.py; a central node stays in the runner's): every action,
+    label, trace (HanGrCom's T and groups) and message total is what one thread gives (no
+    agent reads another's state)."""
     import gymnasium as gym
+
+    from maniskill_tidy.eval import agent_processes
 
     cfg = RunConfig(policy, "I", "test", None)
     env = gym.make(cfg.env, **cfg.env_kwargs(False), max_steps=80)  # 80 steps tell enough
-    played = {}
+    played, remote = {}, {}
+    made = agent_processes.RemoteAgent.__init__
+
+    def count(self, *args, **kwargs):
+        remote[mode] = remote.get(mode, 0) + 1
+        made(self, *args, **kwargs)
+
+    monkeypatch.setattr(agent_processes.RemoteAgent, "__init__", count)
     try:
-        for threads in ("1", "3"):
+        for mode, threads, processes in (("one", "1", "0"), ("threads", "3", "0"),
+                                         ("processes", "1", "1")):  # fmt: skip
             monkeypatch.setenv("TIDY_AGENT_THREADS", threads)
-            log = _Actions()
+            monkeypatch.setenv("TIDY_AGENT_PROCESSES", processes)
+            log = _Traces()
             record = play_episode(env, make_team(policy), 0, 0, [log])
-            played[threads] = (dataclasses.replace(record, seconds=0.0), log.steps)
+            played[mode] = (dataclasses.replace(record, seconds=0.0), log.steps, log.traces)
     finally:
         env.close()
     assert make_team(policy).threadsafe_agents
-    assert played["1"] == played["3"]
+    assert remote == {"processes": 3}  # the three agents, only when asked
+    assert played["one"][2] or policy != "hangrcom"  # HanGrCom reports T every step
+    _same_traces(played["one"], played["threads"])
+    _same_traces(played["one"], played["processes"])

@@ -216,6 +216,9 @@ class JobActor:
     def __init__(self, cwd: str, init: Callable | None, initargs: tuple) -> None:
         if os.path.isdir(cwd):  # relative paths (a dataset folder) mean what they meant there
             os.chdir(cwd)
+        # an actor has one CPU of its node (num_cpus=1), not the node's every core: its team's
+        # agents think on one thread, in this process
+        os.environ.setdefault("TIDY_AGENT_THREADS", "1")
         if init is not None:
             init(*initargs)  # the env lives as long as the actor's process
 

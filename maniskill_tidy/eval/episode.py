@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from maniskill_tidy.common.parallel import agent_pool
+from maniskill_tidy.eval import agent_processes
 from maniskill_tidy.eval.metrics import EpisodeRecord
 from maniskill_tidy.policies.base import (
     OBSERVATION_KEYS,
@@ -57,17 +58,30 @@ class Execution:
         self.channel = Channel(public.agents, central=team.central)
         self.agents: dict[str, Agent] = {}
         self.central_node = None
+        self.t = 0
         self.pool = agent_pool() if getattr(team, "threadsafe_agents", False) else None
+        self.remote = False  # agents in processes of their own (eval/agent_processes.py)
         if isinstance(team, PrivilegedTeam):
             team.reset(public, env)
+            return
+        if agent_processes.wanted(team, len(public.agents)):
+            self.remote = True
+            hosts = agent_processes.hosts(len(public.agents))
+            self.agents = {
+                name: agent_processes.RemoteAgent(
+                    host, team, name, public, Outbox(self.channel, name)
+                )
+                for host, name in zip(hosts, public.agents, strict=True)
+            }
+            for agent in self.agents.values():  # built side by side, in the hosts
+                agent.collect()
         else:
             self.agents = {
                 name: team.make_agent(name, public, Outbox(self.channel, name))
                 for name in public.agents
             }
-            if team.central:
-                self.central_node = team.make_central(public, Outbox(self.channel, CENTRAL))
-        self.t = 0
+        if team.central:  # the central node thinks in this process either way
+            self.central_node = team.make_central(public, Outbox(self.channel, CENTRAL))
 
     def step(self, obs: dict, info: dict) -> dict[str, AgentAction]:
         """Every active agent's action for this step."""
@@ -77,24 +91,30 @@ class Execution:
         active = [a.name for a in self.env.agents if not a.stopped]
         failed = info.get("failed", {})
         views = {n: AgentView(n, self.t, _read_only(obs[n]), failed.get(n, "")) for n in active}
-        self._each(lambda n: self.agents[n].observe(views[n]), active)
+        self._each("observe", {n: (views[n],) for n in active})
         for r in range(self.team.rounds):
             self.channel.round = r
-            for name in active:
-                self.agents[name].send(r, self.channel.inbox(name, before_round=r))
+            # what is sent in round r is read from round r + 1 on: the agents may send at once
+            self._each("send", {n: (r, self.channel.inbox(n, before_round=r)) for n in active})
             if self.central_node is not None:
                 self.central_node.send(r, self.channel.inbox(CENTRAL, before_round=r + 1))
         self.t += 1
-        inboxes = {n: self.channel.inbox(n) for n in active}
-        acts = self._each(lambda n: self.agents[n].act(inboxes[n]), active)
+        acts = self._each("act", {n: (self.channel.inbox(n),) for n in active})
         return dict(zip(active, acts, strict=True))
 
-    def _each(self, call, names: list[str]) -> list:
-        """``call(name)`` for every agent, in order; on the agent threads where the team allows
-        (each agent touches only its own state, so the results are those of one thread)."""
-        if self.pool is None or len(names) < 2:
-            return [call(n) for n in names]
-        return list(self.pool.map(call, names))
+    def _each(self, method: str, args: dict[str, tuple]) -> list:
+        """``agent.method(*args[name])`` for every agent, in order. Where the team allows (each
+        agent touches only its own state, so the results are those of one thread), on the agent
+        threads, or posted to every agent's process before any answer is read; their messages
+        reach the channel in the agents' order either way."""
+        names = list(args)
+        if self.remote:
+            for n in names:
+                self.agents[n].post(method, *args[n])
+            return [self.agents[n].collect() for n in names]
+        if self.pool is None or len(names) < 2 or method == "send":
+            return [getattr(self.agents[n], method)(*args[n]) for n in names]
+        return list(self.pool.map(lambda n: getattr(self.agents[n], method)(*args[n]), names))
 
     def traces(self) -> dict[str, dict]:
         if isinstance(self.team, PrivilegedTeam):

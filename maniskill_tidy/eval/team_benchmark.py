@@ -19,6 +19,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from maniskill_tidy.eval import agent_processes
 from maniskill_tidy.eval.episode import Execution, play_episode
 from maniskill_tidy.eval.runner import RunConfig, evaluate, make_env, run_dir, select
 from maniskill_tidy.policies import make_team
@@ -87,12 +88,14 @@ def bench_team(policy: str, episodes: int = 3, dataset: str | None = None,
 
 
 def cpu_seconds() -> float:
-    """CPU time of this process and its finished child processes (user + system)."""
+    """CPU time of this process, its finished child processes and its agents' live hosts
+    (user + system)."""
     own, children = (
         resource.getrusage(resource.RUSAGE_SELF),
         resource.getrusage(resource.RUSAGE_CHILDREN),
     )
-    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
+    hosts = agent_processes.hosts_cpu_seconds()
+    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime + hosts
 
 
 def bench_workers(policy: str, episodes: int = 6, dataset: str | None = None) -> dict:

@@ -54,4 +54,6 @@ def team_class(policy: str) -> type[AnyTeam]:
 
 
 def make_team(policy: str) -> AnyTeam:
-    return team_class(policy)()
+    team = team_class(policy)()
+    team.spec = policy  # what an agent's own process makes its team from (eval/agent_processes)
+    return team

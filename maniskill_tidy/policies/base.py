@@ -177,6 +177,10 @@ class Team(ABC):
     # Its agents' observe and act touch nothing but their own state (as this interface asks),
     # so the runner may call them on several threads at once: the same results, sooner.
     threadsafe_agents: ClassVar[bool] = False
+    # Its agents' steps cost enough (model passes) to pay for the messages of thinking in
+    # processes of their own, one per agent, where the cores allow (eval/agent_processes.py);
+    # a heuristic agent's does not (its episodes got slower).
+    agent_processes: ClassVar[bool] = False
 
     @abstractmethod
     def make_agent(self, name: str, public: PublicInfo, outbox: Outbox) -> Agent:

@@ -329,6 +329,7 @@ class LearnedTeam(Team):
     communication = "hangrcom"
     rounds = 3
     threadsafe_agents = True
+    agent_processes = True
     perception: ClassVar[str] = describe("agents/perception/knowledge", DecisionConfig())
 
     config_file: ClassVar[Path] = DEFAULT_CONFIG
