@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import gzip
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -15,13 +16,14 @@ import pytest
 from maniskill_tidy.envs.episodes import default_dataset
 
 
-def cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
+def cli(*args: str, cwd: Path | None = None, env: dict | None = None):
     return subprocess.run(
         [sys.executable, "-m", "maniskill_tidy.cli", *args],
         capture_output=True,
         text=True,
         timeout=600,
         cwd=cwd,
+        env={**os.environ, **(env or {})},
     )
 
 
@@ -280,4 +282,11 @@ def test_eval_workers_take_a_number_or_auto(tmp_path):
     out = tmp_path / "out"
     p = cli("eval", "--policy", "random", "--workers", "many", "--out", str(out))
     one_line_error(p, "--workers 'many'", "a number of processes or auto")
+    assert not out.exists()
+
+
+def test_a_bad_agent_processes_knob_is_refused_before_anything_is_written(tmp_path):
+    out = tmp_path / "out"
+    p = cli("eval", "--policy", "random", "--out", str(out), env={"TIDY_AGENT_PROCESSES": "on"})
+    one_line_error(p, "TIDY_AGENT_PROCESSES='on'", "expected 0 or 1")
     assert not out.exists()

@@ -28,7 +28,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from maniskill_tidy.common.parallel import JobError, WorkerLostError, workers_option
+    from maniskill_tidy.common.parallel import (
+        JobError,
+        WorkerLostError,
+        agent_processes_knob,
+        workers_option,
+    )
     from maniskill_tidy.houses.procthor import ProcTHORImportError
     from maniskill_tidy.tasks.dataset import DatasetError
 
@@ -36,6 +41,7 @@ def main(argv: list[str] | None = None) -> int:
 
     args = build_parser().parse_args(argv)
     try:
+        agent_processes_knob()  # read deep inside a run's jobs: refused before anything starts
         if getattr(args, "workers", None) is not None:
             workers_option(args.workers)  # a number of at least 1 (or eval's auto), else refused
         if getattr(args, "ray", None):  # before anything is written

@@ -106,6 +106,15 @@ def workers_option(value: str | int) -> int | None:
     return n
 
 
+def agent_processes_knob() -> bool | None:
+    """``TIDY_AGENT_PROCESSES``: True (1), False (0) or None (unset: the team and the cores
+    decide, ``eval/agent_processes.py``); anything else is refused."""
+    knob = os.environ.get("TIDY_AGENT_PROCESSES", "")
+    if knob not in ("", "0", "1"):
+        raise ValueError(f"TIDY_AGENT_PROCESSES={knob!r}: expected 0 or 1 (or unset)")
+    return None if knob == "" else knob == "1"
+
+
 _agent_pools: dict[int, Any] = {}
 
 

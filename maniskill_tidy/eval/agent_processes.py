@@ -8,7 +8,7 @@ is posted to all the agents' hosts before any answer is read, so the agents thin
 as many cores as there are. A host answers with what its agent returned and the messages it
 sent, which the runner puts on the channel in the order the agents would have sent them in
 this process. The same code on the same inputs, torch on one thread in both: the same records
-(``tests/test_agent_processes.py``).
+(``tests/test_teams.py`` plays a team both ways and compares every step).
 
 ``TIDY_AGENT_PROCESSES=1`` turns it on for any team whose agents allow it
 (:attr:`Team.threadsafe_agents`, made by ``make_team``, which the host repeats), ``0`` off;
@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from maniskill_tidy.common.parallel import THREAD_KNOBS, worker_threads
+from maniskill_tidy.common.parallel import THREAD_KNOBS, agent_processes_knob, worker_threads
 from maniskill_tidy.policies.base import Agent, AgentView, Label, PublicInfo
 from maniskill_tidy.policies.channel import Message, Outbox
 
@@ -42,15 +42,13 @@ PRELOAD = ["maniskill_tidy.policies", "maniskill_tidy.models.perception"]
 
 def wanted(team: Any, agents: int) -> bool:
     """Whether this team's agents should think in hosts (see the top)."""
-    knob = os.environ.get("TIDY_AGENT_PROCESSES")
-    if knob not in (None, "", "0", "1"):
-        raise ValueError(f"TIDY_AGENT_PROCESSES={knob!r}: expected 0 or 1")
+    knob = agent_processes_knob()
     if agents < 2 or not getattr(team, "threadsafe_agents", False):
         return False
     if getattr(team, "spec", None) is None:  # not made by make_team: a host cannot repeat it
         return False
-    if knob:
-        return knob == "1"
+    if knob is not None:
+        return knob
     cores = int(os.environ.get("TIDY_AGENT_THREADS") or worker_threads(1))
     return getattr(team, "agent_processes", False) and cores >= 2
 
@@ -86,11 +84,13 @@ class SharedFrames:
     """An observation's images through a file in shared memory instead of the pipe (pickling
     three 224 x 224 frames per agent through a pipe cost the runner 7 ms per step). The runner
     writes a step's arrays; the host copies them out before it answers, so the next step's
-    write never meets an agent still reading."""
+    write never meets an agent still reading. Once the host has mapped the file its name is
+    removed (:meth:`mapped`): a killed run leaves nothing in /dev/shm."""
 
     def __init__(self) -> None:
         self.path: str | None = None
         self.buffer: mmap.mmap | None = None
+        self.linked = False
 
     def pack(self, obs: dict[str, np.ndarray]) -> tuple[str | None, dict]:
         """The runner's side: (the buffer's path, each key's array or where it lies)."""
@@ -100,9 +100,11 @@ class SharedFrames:
         if big and (self.buffer is None or len(self.buffer) < size):
             self.close()
             folder = "/dev/shm" if os.path.isdir("/dev/shm") else None
-            fd, self.path = tempfile.mkstemp(prefix="tidy-agent-", dir=folder)
+            # a name never used before: the host maps each new name once
+            fd, self.path = tempfile.mkstemp(prefix=f"tidy-agent-{uuid.uuid4().hex}-", dir=folder)
             os.ftruncate(fd, size)
             self.buffer = mmap.mmap(fd, size)
+            self.linked = True
             os.close(fd)
         out, offset = {}, 0
         for k, a in arrays.items():
@@ -114,10 +116,16 @@ class SharedFrames:
             offset += -(-a.nbytes // ALIGN) * ALIGN
         return self.path, out
 
+    def mapped(self) -> None:
+        """The host has mapped the buffer: its name is no longer needed."""
+        if self.linked:
+            os.unlink(self.path)
+            self.linked = False
+
     def close(self) -> None:
+        self.mapped()
         if self.buffer is not None:
             self.buffer.close()
-            os.unlink(self.path)
         self.path, self.buffer = None, None
 
 
@@ -312,6 +320,8 @@ class RemoteAgent(Agent):
         result, sent = self.host.collect()
         for receivers, vector, kind in sent:
             self.outbox.send(receivers, vector, kind)
+        if self._posted == "observe":
+            self.host.frames.mapped()
         if self._posted == "act":
             result, self._label, self._trace = result
         return result
