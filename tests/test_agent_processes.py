@@ -108,3 +108,26 @@ def test_a_hosts_failure_reaches_the_runner_with_its_cause_and_a_dead_host_is_re
         agent.act([])
     (again,) = agent_processes.hosts(1)
     assert again is not host and again.process.is_alive()
+
+
+def test_a_step_that_fails_in_one_host_leaves_every_host_free_for_the_next(monkeypatch):
+    import gymnasium as gym
+
+    from maniskill_tidy.eval.episode import Execution
+    from maniskill_tidy.eval.runner import RunConfig
+
+    monkeypatch.setenv("TIDY_AGENT_PROCESSES", "1")
+    cfg = RunConfig("heuristic-none", "I", "test", None)
+    env = gym.make(cfg.env, **cfg.env_kwargs(False), max_steps=5)
+    try:
+        obs, info = env.reset(seed=0, options={"episode": 0})
+        team = make_team("heuristic-none")
+        execution = Execution(team, env.unwrapped, 0)
+        assert execution.remote
+        names = list(obs)
+        with pytest.raises(RuntimeError, match="during 'observe'"):
+            execution.step({**obs, names[1]: {}}, info)  # one agent's observation missing
+        actions = Execution(team, env.unwrapped, 0).step(obs, info)  # no host left busy
+        assert set(actions) == set(names)
+    finally:
+        env.close()

@@ -111,7 +111,15 @@ class Execution:
         if self.remote:
             for n in names:
                 self.agents[n].post(method, *args[n])
-            return [self.agents[n].collect() for n in names]
+            results, failure = [], None
+            for n in names:  # every answer is read, so no host is left busy by one that failed
+                try:
+                    results.append(self.agents[n].collect())
+                except RuntimeError as err:
+                    failure = failure or err
+            if failure is not None:
+                raise failure
+            return results
         if self.pool is None or len(names) < 2 or method == "send":
             return [getattr(self.agents[n], method)(*args[n]) for n in names]
         return list(self.pool.map(lambda n: getattr(self.agents[n], method)(*args[n]), names))
