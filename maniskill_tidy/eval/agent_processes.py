@@ -24,6 +24,7 @@ import atexit
 import mmap
 import multiprocessing
 import os
+import signal
 import sys
 import tempfile
 import traceback
@@ -149,6 +150,10 @@ def _unpack(buffers: dict[str, mmap.mmap], path: str | None, packed: dict) -> di
 def _serve(conn) -> None:
     """A host's loop: build agents, run their calls, answer with results and sent messages."""
     from maniskill_tidy.policies import make_team
+
+    # Ctrl-C is the runner's to handle (it closes its hosts); a host that took it too would
+    # print a traceback of its own from inside its wait
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
     teams: dict[str, Any] = {}
     buffers: dict[str, mmap.mmap] = {}
@@ -276,7 +281,8 @@ def hosts_cpu_seconds() -> float:
     total = 0.0
     for h in _hosts:
         try:
-            fields = open(f"/proc/{h.process.pid}/stat").read().rsplit(")", 1)[1].split()
+            with open(f"/proc/{h.process.pid}/stat") as f:
+                fields = f.read().rsplit(")", 1)[1].split()
         except OSError:
             continue
         total += (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")  # utime, stime
