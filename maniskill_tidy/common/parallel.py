@@ -118,12 +118,18 @@ def agent_processes_knob() -> bool | None:
 _agent_pools: dict[int, Any] = {}
 
 
+def agent_threads() -> int:
+    """``TIDY_AGENT_THREADS``, else every core of this process's share: the threads (or, for
+    teams whose agents think in processes, the cores) a team's agents may use."""
+    return int(os.environ.get("TIDY_AGENT_THREADS") or worker_threads(1))
+
+
 def agent_pool():
-    """A thread pool for a team's agents (``TIDY_AGENT_THREADS`` threads, else every core of
-    this process's share), or None where that is one thread."""
+    """A thread pool for a team's agents (:func:`agent_threads` threads), or None where that is
+    one thread."""
     from concurrent.futures import ThreadPoolExecutor
 
-    threads = int(os.environ.get("TIDY_AGENT_THREADS") or worker_threads(1))
+    threads = agent_threads()
     if threads < 2:
         return None
     if threads not in _agent_pools:

@@ -14,7 +14,7 @@ this process. The same code on the same inputs, torch on one thread in both: the
 (:attr:`Team.threadsafe_agents`, made by ``make_team``, which the host repeats), ``0`` off;
 unset, it is on for teams whose agents think long enough to pay for the messages
 (:attr:`Team.agent_processes`: the learned ones) where the runner's process has two cores or
-more to itself (``worker_threads``: not under ``eval --workers 2`` on two cores). Hosts start
+more to itself (``agent_threads``: not under ``eval --workers 2`` on two cores). Hosts start
 from a fork server that has imported the package once.
 """
 
@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from maniskill_tidy.common.parallel import THREAD_KNOBS, agent_processes_knob, worker_threads
+from maniskill_tidy.common.parallel import THREAD_KNOBS, agent_processes_knob, agent_threads
 from maniskill_tidy.policies.base import Agent, AgentView, Label, PublicInfo
 from maniskill_tidy.policies.channel import Message, Outbox
 
@@ -50,8 +50,7 @@ def wanted(team: Any, agents: int) -> bool:
         return False
     if knob is not None:
         return knob
-    cores = int(os.environ.get("TIDY_AGENT_THREADS") or worker_threads(1))
-    return getattr(team, "agent_processes", False) and cores >= 2
+    return getattr(team, "agent_processes", False) and agent_threads() >= 2
 
 
 class RecordingOutbox:
@@ -82,8 +81,8 @@ ALIGN = 64
 
 
 class SharedFrames:
-    """An observation's images through a file in shared memory instead of the pipe (pickling
-    three 224 x 224 frames per agent through a pipe cost the runner 7 ms per step). The runner
+    """An observation's images through a file in shared memory instead of the pipe (the runner
+    would otherwise pickle three 224 x 224 frames per agent and step). The runner
     writes a step's arrays; the host copies them out before it answers, so the next step's
     write never meets an agent still reading. Once the host has mapped the file its name is
     removed (:meth:`mapped`): a killed run leaves nothing in /dev/shm."""
