@@ -6,7 +6,10 @@ Plays one Setting I test episode ``--rounds`` times each way, in turns (threads,
 threads, ...), after one throwaway episode each way (models load, hosts start): per team step,
 the milliseconds of the team's step (``Execution.step``: observe, the rounds, act) and of the
 env's, and the cores the team's steps kept busy (this process's CPU and the hosts' over wall
-time). The records must be equal, or it stops. Nothing is written.
+time). The records must be equal, or it stops. ``--phases`` adds, per phase of a step
+(observe, send: one per communication round, act), its wall milliseconds and the CPU
+milliseconds spent in it (this process's and the hosts'): where a phase's wall exceeds its CPU
+over the cores, the agents wait on each other or on the messages. Nothing is written.
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ def main() -> None:
     p.add_argument("--env", default="HeteroTidy-v1")
     p.add_argument("--dataset", default="data/tidy120")
     p.add_argument("--rounds", type=int, default=3)
+    p.add_argument("--phases", action="store_true", help="time each phase of a team step")
     args = p.parse_args()
 
     clock = {"team": 0.0, "team_cpu": 0.0, "env": 0.0, "steps": 0}
@@ -48,6 +52,23 @@ def main() -> None:
             clock["steps"] += 1
 
     Execution.step = timed_team
+    phases: dict[str, list] = {}  # phase -> [calls, wall s, CPU s]
+    each = Execution._each
+
+    def timed_each(self, method, *a, **k):
+        start, cpu = time.perf_counter(), time.process_time()
+        hosts = agent_processes.hosts_cpu_seconds()
+        try:
+            return each(self, method, *a, **k)
+        finally:
+            row = phases.setdefault(method, [0, 0.0, 0.0])
+            row[0] += 1
+            row[1] += time.perf_counter() - start
+            row[2] += time.process_time() - cpu + agent_processes.hosts_cpu_seconds() - hosts
+
+    if args.phases:
+        Execution._each = timed_each
+    phase_rows: dict[str, list[dict]] = {m: [] for m in MODES}
     cfg = RunConfig(args.policy, "I", "test", args.dataset, 1, env=args.env)
     env, team = make_env(cfg), make_team(args.policy)
     u = env.unwrapped
@@ -69,6 +90,7 @@ def main() -> None:
             os.environ["TIDY_AGENT_PROCESSES"] = knob
             for k in clock:
                 clock[k] = 0
+            phases.clear()
             record = dataclasses.replace(play_episode(env, team, i, i), seconds=0.0)
             if records.setdefault(mode, record) != record or record != records["threads"]:
                 raise SystemExit(f"{mode}: the record differs: {record} against {records}")
@@ -77,6 +99,9 @@ def main() -> None:
             n = clock["steps"]
             results[mode].append(
                 (1e3 * clock["team"] / n, 1e3 * clock["env"] / n, clock["team_cpu"] / clock["team"])
+            )
+            phase_rows[mode].append(
+                {m: (c / n, 1e3 * w / c, 1e3 * cpu / c) for m, (c, w, cpu) in phases.items()}
             )
             team_ms, env_ms, cores = results[mode][-1]
             print(f"round {r} {mode:9s}: team {team_ms:6.2f} ms/step, env {env_ms:6.2f} "
@@ -87,6 +112,12 @@ def main() -> None:
         team_ms, env_ms, cores = (statistics.median(col) for col in zip(*rows, strict=True))
         print(f"  {mode:9s} team {team_ms:6.2f}  env {env_ms:6.2f}  (team + env) / env "
               f"{(team_ms + env_ms) / env_ms:.2f}  cores {cores:.2f}")  # fmt: skip
+    if args.phases:
+        print("per phase, medians over the rounds: calls per team step, wall and CPU ms per call")
+        for mode, rows in phase_rows.items():
+            for m in rows[0]:
+                calls, wall, cpu = (statistics.median(r[m][j] for r in rows) for j in range(3))
+                print(f"  {mode:9s} {m:8s} x{calls:.1f}  wall {wall:6.2f}  CPU {cpu:6.2f}")
 
 
 if __name__ == "__main__":
