@@ -56,16 +56,18 @@ def main() -> None:
     phases: dict[str, list] = {}  # phase -> [calls, wall s, CPU s]
     each = Execution._each
 
+    def hosts_cpu(execution) -> float:  # idle hosts are not read on threads (/proc costs)
+        return agent_processes.hosts_cpu_seconds() if execution.remote else 0.0
+
     def timed_each(self, method, *a, **k):
-        start, cpu = time.perf_counter(), time.process_time()
-        hosts = agent_processes.hosts_cpu_seconds()
+        start, cpu, hosts = time.perf_counter(), time.process_time(), hosts_cpu(self)
         try:
             return each(self, method, *a, **k)
         finally:
             row = phases.setdefault(method, [0, 0.0, 0.0])
             row[0] += 1
             row[1] += time.perf_counter() - start
-            row[2] += time.process_time() - cpu + agent_processes.hosts_cpu_seconds() - hosts
+            row[2] += time.process_time() - cpu + hosts_cpu(self) - hosts
 
     if args.phases:
         Execution._each = timed_each
