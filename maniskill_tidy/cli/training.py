@@ -60,7 +60,7 @@ def _demos(args: argparse.Namespace) -> int:
 
 
 def _train(args: argparse.Namespace) -> int:
-    from maniskill_tidy.policies.agent_config import is_qmix_config
+    from maniskill_tidy.policies.agent_config import trainer_of
     from maniskill_tidy.training.qmix_trainer import train_qmix
 
     if args.what != "perception":  # an agent config says where its model goes: eval reads it
@@ -74,7 +74,19 @@ def _train(args: argparse.Namespace) -> int:
     for key, default in TRAIN_DEFAULTS.items():
         if getattr(args, key) is None:
             setattr(args, key, default)
-    if is_qmix_config(Path(args.what)):
+    if trainer_of(Path(args.what)) == "memory":
+        from maniskill_tidy.training.memory_trainer import train_memory
+
+        card = train_memory(Path(args.what), args.setting)
+        loop = card.get("closed_loop", {})
+        print(
+            f"{card['name']} Setting {args.setting}: val accuracy {card['val']['balanced']:.3f} "
+            "(mean over kinds of choice) "
+            f"(best epoch {card['best_epoch']}); closed loop on val, Success "
+            + ", ".join(f"{who} {m['Success']:.3f}" for who, m in loop.items())
+        )
+        return 0
+    if trainer_of(Path(args.what)) == "qmix":
         card = train_qmix(Path(args.what), args.setting)
         print(
             f"{card['name']} Setting {args.setting}: {card['episodes']} episodes, "

@@ -1,4 +1,5 @@
-"""Saving and loading trained models: the decision team, the perception model and QMIX.
+"""Saving and loading trained models: the decision team, the perception model, QMIX and the
+object-memory pointer.
 
 Training writes these files, evaluation reads them; both sides import this module, so a team
 never reaches up into ``training/`` to load its weights. Weights are stored in fp16 next to
@@ -24,6 +25,7 @@ from maniskill_tidy.common.files import file_sha256, write_atomic
 from maniskill_tidy.knowledge import load_catalog
 from maniskill_tidy.knowledge.word_vectors import load_word_vectors
 from maniskill_tidy.models.decision import DecisionConfig, TeamDecision
+from maniskill_tidy.models.memory_pointer import MemoryPointer
 from maniskill_tidy.models.qmix import QmixTeamModel
 
 if TYPE_CHECKING:
@@ -159,5 +161,18 @@ def save_qmix(model: QmixTeamModel, folder: Path, extra: dict) -> None:
 def load_qmix(folder: Path) -> tuple[QmixTeamModel, dict]:
     saved = read(folder, "maniskill-tidy train agents/qmix.yaml --setting S")
     model = QmixTeamModel(saved["agents"], saved["feature"])
+    model.load_state_dict(_float(saved["state"]))
+    return model.eval(), saved
+
+
+def save_memory(model: MemoryPointer, folder: Path, sizes: dict, extra: dict) -> None:
+    """``sizes``: the pointer's constructor arguments (kinds, receptacles, numeric, context,
+    dim, heads), so that loading needs nothing else."""
+    save(folder, {"sizes": sizes, "state": _half(model), **extra}, sizes)
+
+
+def load_memory(folder: Path) -> tuple[MemoryPointer, dict]:
+    saved = read(folder, "maniskill-tidy train agents/memory.yaml --setting S")
+    model = MemoryPointer(type_vectors(), **saved["sizes"])
     model.load_state_dict(_float(saved["state"]))
     return model.eval(), saved

@@ -1,11 +1,12 @@
 """Teams: the privileged expert, the Random baseline, heuristic teams that see through their
-cameras with the communication patterns of the paper's baselines, and the learned team."""
+cameras with the communication patterns of the paper's baselines, the learned team (the paper's
+model), QMIX, and the object-memory team."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from maniskill_tidy.policies.agent_config import QmixConfig, is_qmix_config
+from maniskill_tidy.policies.agent_config import QmixConfig, trainer_of
 from maniskill_tidy.policies.base import AnyTeam
 from maniskill_tidy.policies.expert import ExpertTeam
 from maniskill_tidy.policies.heuristic import (
@@ -16,6 +17,7 @@ from maniskill_tidy.policies.heuristic import (
     SingleAgent,
 )
 from maniskill_tidy.policies.learned import LearnedTeam, learned_team_class
+from maniskill_tidy.policies.memory import MemoryTeam
 from maniskill_tidy.policies.qmix_team import QmixTeam
 from maniskill_tidy.policies.random_team import RandomTeam
 
@@ -31,6 +33,7 @@ POLICIES: dict[str, type[AnyTeam]] = {
         CentralTeam,
         LearnedTeam,
         QmixTeam,
+        MemoryTeam,
     )
 }
 
@@ -42,10 +45,15 @@ def team_class(policy: str) -> type[AnyTeam]:
     if str(policy).endswith((".yaml", ".yml")):
         from maniskill_tidy.policies.learned import resolve
 
-        if is_qmix_config(resolve(policy)):
+        trainer = trainer_of(resolve(policy))
+        if trainer == "qmix":
             cfg = QmixConfig.load(resolve(policy))
             return type(f"QmixTeam_{cfg.name}", (QmixTeam,), {"name": cfg.name,
                                                              "folder": Path(cfg.out)})  # fmt: skip
+        if trainer == "memory":
+            from maniskill_tidy.policies.memory import memory_team_class
+
+            return memory_team_class(policy)
         return learned_team_class(policy)
     raise ValueError(
         f"unknown policy {policy!r}; choose one of {sorted(POLICIES)} or an agent config "

@@ -189,6 +189,52 @@ class QmixConfig:
         return float(e["start"] + frac * (e["end"] - e["start"]))
 
 
+@dataclass(frozen=True)
+class MemoryConfig:
+    """The object-memory team (``policies/memory.py``): a pointer over remembered objects and
+    other jobs, trained by behaviour cloning on a camera-only heuristic team's own choices."""
+
+    name: str
+    out: str
+    trainer: str = "memory"
+    # whose job choices are imitated; the team sends that team's messages (so: its pattern)
+    teacher: str = "heuristic-detection"
+    dataset: str = "data/tidy120"
+    work: str = "data/memory"
+    workers: int = 2
+    env: str = "HeteroTidy-v1"  # the look the teacher plays in
+    train_demos: dict = field(default_factory=lambda: {"starts": 1, "tasks": 3})
+    val_demos: dict = field(default_factory=lambda: {"starts": 1, "tasks": 1})
+    model: dict = field(default_factory=lambda: {"dim": 64, "heads": 4})
+    train: dict = field(default_factory=dict)  # epochs, batch, lr, seed, patience
+    val_episodes: int = 20  # closed-loop val episodes for the card, the student's and teacher's
+    notes: str = ""
+
+    TEACHERS = ("heuristic-none", "heuristic-detection", "heuristic-broadcast")
+    TRAIN_KEYS = ("epochs", "batch", "lr", "seed", "patience")
+
+    @classmethod
+    def load(cls, path: Path) -> MemoryConfig:
+        path = Path(path)
+        cfg = cls(**_checked_keys(path, read_config(path), cls))
+        if cfg.teacher not in cls.TEACHERS:
+            raise ValueError(f"{path}: teacher {cfg.teacher!r}: expected one of {cls.TEACHERS}")
+        bad = sorted(set(cfg.model) - {"dim", "heads"}) + sorted(
+            set(cfg.train) - set(cls.TRAIN_KEYS)
+        )
+        if bad:
+            raise ValueError(f"{path}: unknown model or train keys {bad}; expected dim, heads "
+                             f"and {list(cls.TRAIN_KEYS)}")  # fmt: skip
+        for section in ("train_demos", "val_demos"):
+            extra = sorted(set(getattr(cfg, section)) - {"starts", "tasks", "houses"})
+            if extra:
+                raise ValueError(f"{path}: unknown {section} keys {extra}")
+        return cfg
+
+    def settings(self) -> dict:
+        return {"epochs": 30, "batch": 256, "lr": 1e-3, "seed": 0, "patience": 6, **self.train}
+
+
 def _checked_keys(path: Path, raw: dict, cls) -> dict:
     """``raw`` if it names only ``cls``'s fields and has a name and an output folder."""
     known = {f.name for f in fields(cls)}
@@ -201,10 +247,19 @@ def _checked_keys(path: Path, raw: dict, cls) -> dict:
     return raw
 
 
+def trainer_of(path: Path) -> str:
+    """Which trainer a config is for: "qmix", "memory", or "decision" (the paper's model)."""
+    return read_config(Path(path)).get("trainer", "decision") if Path(path).is_file() else ""
+
+
 def is_qmix_config(path: Path) -> bool:
-    return Path(path).is_file() and read_config(Path(path)).get("trainer") == "qmix"
+    return trainer_of(path) == "qmix"
 
 
-def load_config(path: Path) -> AgentConfig | QmixConfig:
-    """Any agent config: QMIX's (``trainer: qmix``) or a hierarchical-decision team's."""
-    return QmixConfig.load(path) if is_qmix_config(path) else AgentConfig.load(path)
+def load_config(path: Path) -> AgentConfig | QmixConfig | MemoryConfig:
+    """Any agent config: QMIX's (``trainer: qmix``), the object-memory team's (``trainer:
+    memory``) or a hierarchical-decision team's."""
+    kind = trainer_of(path)
+    if kind == "qmix":
+        return QmixConfig.load(path)
+    return MemoryConfig.load(path) if kind == "memory" else AgentConfig.load(path)

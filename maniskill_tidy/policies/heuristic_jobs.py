@@ -15,7 +15,7 @@ import numpy as np
 
 from maniskill_tidy.policies.base import EXPLORE, PLACE, SubTask
 from maniskill_tidy.policies.messages import EXPLORE_AREA, FETCH
-from maniskill_tidy.policies.navigation import Cell
+from maniskill_tidy.policies.navigation import Cell, Distances
 from maniskill_tidy.policies.viewpoints import Viewpoint, viewpoints
 from maniskill_tidy.policies.walker import Job, Leg
 
@@ -44,6 +44,28 @@ class Report:
     xy: tuple[float, float]
 
 
+@dataclass
+class PlaceOption:
+    """A surface where D holds for the object held."""
+
+    distance: float  # metres from the agent, straight
+    target: str  # "furniture/surface"
+    centre: np.ndarray
+    object_type: str
+    receptacle_type: str
+    room: str  # the room's id
+
+
+@dataclass
+class InspectOption:
+    """A surface worth a look once searching ends."""
+
+    nearer: bool  # a teammate this agent knows of is nearer to it
+    distance: float
+    target: str
+    centre: np.ndarray
+
+
 class JobChoice:
     def _new_job(self, avoid: set[Cell]) -> Job:
         s = self.state
@@ -60,13 +82,20 @@ class JobChoice:
             job = self._inspect_job()
             if job is not None:
                 return job
-            park = self.planner.parking(s.cell, set(self.parked.values()), avoid)
-            return Job(
-                "park", "", Leg([Viewpoint(park, s.rotation, s.horizon, 0.0)]), SubTask(EXPLORE)
-            )
+            return self._park_job(avoid)
+        return self._explore_job(cell)
+
+    def _explore_job(self, cell: Cell) -> Job:
+        s = self.state
         horizon = EXPLORE_HORIZON[self.height > 0.5]
         leg = Leg([Viewpoint(cell, s.rotation, horizon, 0.0)])
         return Job("explore", "", leg, SubTask(EXPLORE))
+
+    def _park_job(self, avoid: set[Cell]) -> Job:
+        s = self.state
+        park = self.planner.parking(s.cell, set(self.parked.values()), avoid)
+        leg = Leg([Viewpoint(park, s.rotation, s.horizon, 0.0)])
+        return Job("park", "", leg, SubTask(EXPLORE))
 
     def _fetch_job(self) -> Job | None:
         here = np.asarray(self.house.navgrid.center(*self.state.cell))
@@ -79,14 +108,17 @@ class JobChoice:
             options = self._targets()
         if options:
             k = min(options, key=lambda k: (float(np.hypot(*(k.position[:2] - here))), k.object_id))
-            leg = Leg(viewpoints(self.house, k.position, self.height)[:12])
-            return Job("pick", k.object_id, leg, SubTask(PLACE, k.type))
+            return self._pick_job(k)
         if self.reports:
             r = min(
                 self.reports, key=lambda r: (float(np.hypot(*(np.asarray(r.xy) - here))), r.type)
             )
             return self._look_job(r)
         return None
+
+    def _pick_job(self, k: Known) -> Job:
+        leg = Leg(viewpoints(self.house, k.position, self.height)[:12])
+        return Job("pick", k.object_id, leg, SubTask(PLACE, k.type))
 
     def _targets(self) -> list[Known]:
         """Misplaced objects this agent knows of that no closer teammate manipulator is after."""
@@ -113,9 +145,15 @@ class JobChoice:
 
     def _place_job(self) -> Job | None:
         """The nearest surface of the floor plan where D holds for what the agent holds."""
+        options = self._place_options()
+        return self._place_job_at(options[0]) if options else None
+
+    def _place_options(self) -> list[PlaceOption]:
+        """The surfaces of the floor plan where D holds for what the agent holds (and which did
+        not refuse it), nearest first (the floor plan's order among equals)."""
         held_type = self.public.instances[self._seg_of(self.state.held)].type
         here = np.asarray(self.house.navgrid.center(*self.state.cell))
-        best = None
+        options = []
         for spot in self.surfaces:
             target = f"{spot.furniture}/{spot.surface}"
             if target in self.bad_surfaces:
@@ -126,17 +164,23 @@ class JobChoice:
             x0, y0, x1, y1 = spot.bounds
             centre = np.array([(x0 + x1) / 2, (y0 + y1) / 2, spot.height])
             d = float(np.hypot(*(centre[:2] - here)))
-            if best is None or d < best[0]:
-                best = (d, target, centre, rtype, spot.room)
-        if best is None:
-            return None
-        _, target, centre, rtype, room = best
-        leg = Leg(viewpoints(self.house, centre + [0, 0, 0.02], self.height)[:12])
-        return Job("place", target, leg, SubTask(PLACE, held_type, rtype, self.room_type[room]))
+            options.append(PlaceOption(d, target, centre, held_type, rtype, spot.room))
+        return sorted(options, key=lambda o: o.distance)
+
+    def _place_job_at(self, o: PlaceOption) -> Job:
+        leg = Leg(viewpoints(self.house, o.centre + [0, 0, 0.02], self.height)[:12])
+        subtask = SubTask(PLACE, o.object_type, o.receptacle_type, self.room_type[o.room])
+        return Job("place", o.target, leg, subtask)
 
     def _inspect_job(self) -> Job | None:
         """Look at the nearest surface not yet inspected (objects hide on and in furniture),
         preferring those no teammate this agent knows of is nearer to."""
+        options = self._inspect_options()
+        return self._inspect_job_at(options[0]) if options else None
+
+    def _inspect_options(self) -> list[InspectOption]:
+        """The surfaces at a height this agent's camera sees, not yet inspected: those no
+        teammate it knows of is nearer to first, then nearest first."""
         nav = self.house.navgrid
         here = np.asarray(nav.center(*self.state.cell))
         others = [
@@ -154,17 +198,19 @@ class JobChoice:
             centre = np.array([(x0 + x1) / 2, (y0 + y1) / 2, spot.height])
             mine = float(np.hypot(*(centre[:2] - here)))
             nearer = any(float(np.hypot(*(centre[:2] - o))) < mine for o in others)
-            options.append((nearer, mine, target, centre))
-        if not options:
-            return None
-        _, _, target, centre = min(options, key=lambda o: o[:3])
-        leg = Leg(viewpoints(self.house, centre + [0, 0, 0.05], self.height)[:12])
-        return Job("inspect", target, leg, SubTask(EXPLORE))
+            options.append(InspectOption(nearer, mine, target, centre))
+        return sorted(options, key=lambda o: (o.nearer, o.distance, o.target))
 
-    def _search_target(self, avoid: set[Cell]) -> Cell | None:
+    def _inspect_job_at(self, o: InspectOption) -> Job:
+        leg = Leg(viewpoints(self.house, o.centre + [0, 0, 0.05], self.height)[:12])
+        return Job("inspect", o.target, leg, SubTask(EXPLORE))
+
+    def _search_target(self, avoid: set[Cell], dist: Distances | None = None) -> Cell | None:
         """Where to search next: the central node's area, else the nearest unsearched cell
-        (as far as this agent knows) away from the teammates it knows of."""
-        dist = self.planner.distances(self.state.cell, set(self.parked.values()))
+        (as far as this agent knows) away from the teammates it knows of. ``dist``: the moves
+        from the agent's cell around parked teammates, when the caller has them already."""
+        if dist is None:
+            dist = self.planner.distances(self.state.cell, set(self.parked.values()))
         if self.assignment is not None and self.assignment[0] == EXPLORE_AREA:
             cell = self.house.navgrid.cell_of(*self.assignment[2][:2])
             if cell in dist and not self.covered[cell]:

@@ -1,0 +1,154 @@
+"""A learned team that remembers what it saw (DESIGN.md, "Beyond the paper").
+
+Each agent keeps the memory of a camera-only heuristic agent (``policies/heuristic.py``): the
+objects it detected, each judged misplaced with the placement knowledge D, its teammates'
+reports, the cells it searched and the teammates it knows of; it sends and reads the messages
+of its teacher's pattern (``MemoryConfig.teacher``). What is learned is the choice of the next
+job: when an agent has none, a pointer (``models/memory_pointer.py``) scores every job it could
+take (``policies/memory_candidates.py``: fetch one of the objects it remembers, check a
+report, put down on one of the surfaces where D holds, explore, inspect, park) and the agent
+takes the best; the walker carries the job out by shortest path, as the teacher's does. The
+pointer is trained by behaviour cloning on the teacher's own choices over the same candidates
+(``training/memory_trainer.py``).
+
+Stand-ins, as for the heuristic teams: detections are the renderer's ground-truth
+segmentation; whether an object is misplaced is D's answer for the surface it rests on, not a
+learned detector's. The explore and inspect candidates are the heuristic's choice of cell and
+surface. Because the pointer runs only when a job ends, an agent's step costs about what a
+heuristic agent's does (``python -m maniskill_tidy.bench --only teams --teams memory``).
+"""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+from typing import ClassVar
+
+import torch
+
+from maniskill_tidy.models.checkpoints import CheckpointError, load_memory, verify
+from maniskill_tidy.policies.agent_config import MemoryConfig
+from maniskill_tidy.policies.base import Agent, PublicInfo
+from maniskill_tidy.policies.channel import Outbox
+from maniskill_tidy.policies.heuristic import HeuristicAgent, HeuristicTeam
+from maniskill_tidy.policies.heuristic_jobs import JobChoice
+from maniskill_tidy.policies.memory_candidates import KINDS, MemoryCandidates, teacher_slot
+from maniskill_tidy.policies.navigation import Cell
+from maniskill_tidy.policies.walker import Job
+from maniskill_tidy.tasks.teams import SETTINGS, setting_of
+
+DEFAULT_CONFIG = Path("agents/memory.yaml")
+
+
+class MemoryAgent(MemoryCandidates, HeuristicAgent):
+    def __init__(self, name: str, public: PublicInfo, outbox: Outbox, team: MemoryTeam) -> None:
+        super().__init__(name, public, outbox, team.communication)
+        self.pointer = None if team.recording else team.pointer(public.capabilities)
+        self.decisions: list[tuple] = []  # teacher mode: (step, rows, teacher's slot)
+        self._choice: dict = {}
+
+    def _new_job(self, avoid: set[Cell]) -> Job:
+        dist = self.planner.distances(self.state.cell, set(self.parked.values()))
+        cands = self._candidates(avoid, dist)
+        rows = self._rows(cands, dist)
+        if self.pointer is None:  # teacher mode: the heuristic's own choice, recorded
+            job = JobChoice._new_job(self, avoid)
+            self.decisions.append((self.t, rows, teacher_slot(cands, job, self._looking)))
+            return job
+        inputs = (rows.kind[None], rows.type[None], rows.rest[None], rows.numeric[None],
+                  rows.context[None])  # fmt: skip
+        with torch.inference_mode():
+            logits = self.pointer(*map(torch.from_numpy, inputs))[0]
+        best = int(logits.argmax())
+        p = torch.softmax(logits, 0)
+        self._choice = {"job": KINDS[int(rows.kind[best])], "p": round(float(p[best]), 3),
+                        "candidates": len(cands)}  # fmt: skip
+        return self._job_for(cands[best], avoid)
+
+    def trace(self) -> dict:
+        """The pointer's last choice (kind, its probability, how many candidates it had)."""
+        return dict(self._choice)
+
+
+class MemoryTeam(HeuristicTeam):
+    """Heuristic memory and messages, a learned choice of job (see the top)."""
+
+    name = "memory"
+    communication = "detection"
+    perception = (
+        "ground-truth segmentation + depth, open3d semantic map; misplaced by D; learned "
+        "pointer over the remembered objects and jobs"
+    )
+    config_file: ClassVar[Path] = DEFAULT_CONFIG
+
+    def __init__(self, recording: bool = False) -> None:
+        """``recording``: play the teacher's choices and keep every decision's candidates
+        (``MemoryAgent.decisions``, of the agents in ``made``): training data."""
+        from maniskill_tidy.policies.learned import resolve
+
+        self.config = MemoryConfig.load(resolve(self.config_file))
+        self.recording = recording
+        self.made: list[MemoryAgent] = []
+        self._loaded: dict = {}
+
+    @classmethod
+    def trained_setting(cls, capabilities) -> str:
+        setting = setting_of(capabilities)
+        if setting is None:
+            team = list(map(tuple, capabilities))
+            raise ValueError(
+                f"{cls.name} is trained for the teams of Settings {sorted(SETTINGS)}, not {team}"
+            )
+        return setting
+
+    @classmethod
+    def model_folder(cls, team) -> Path:
+        from maniskill_tidy.policies.learned import resolve
+
+        cfg = MemoryConfig.load(resolve(cls.config_file))
+        return resolve(cfg.out) / f"setting_{cls.trained_setting(team)}"
+
+    @classmethod
+    def missing_model(cls, team: tuple) -> str | None:
+        hint = f"maniskill-tidy train {cls.config_file} --setting {cls.trained_setting(team)}"
+        try:
+            verify(cls.model_folder(team), hint)
+        except CheckpointError as err:
+            return str(err)
+        return None
+
+    @classmethod
+    def model_hash(cls, team: tuple) -> str:
+        """A fingerprint of the pointer's weights (a resumed run with others is refused)."""
+        state = torch.load(cls.model_folder(team) / "model.pt", weights_only=False)["state"]
+        digest = hashlib.sha256()
+        for key in sorted(state):
+            digest.update(key.encode())
+            digest.update(state[key].cpu().contiguous().numpy().tobytes())
+        return digest.hexdigest()[:16]
+
+    def pointer(self, capabilities: list):
+        setting = self.trained_setting(capabilities)
+        if setting not in self._loaded:
+            torch.set_num_threads(1)  # batch-of-one inference beside the env and teammates
+            self._loaded[setting] = load_memory(self.model_folder(capabilities))[0]
+        return self._loaded[setting]
+
+    def make_agent(self, name: str, public: PublicInfo, outbox: Outbox) -> Agent:
+        agent = MemoryAgent(name, public, outbox, self)
+        if self.recording:
+            self.made.append(agent)
+        return agent
+
+
+def memory_team_class(config: str | Path) -> type[MemoryTeam]:
+    """A team class named after an object-memory config's ``name``; it sends its teacher's
+    messages."""
+    from maniskill_tidy.policies import POLICIES
+    from maniskill_tidy.policies.learned import resolve
+
+    cfg = MemoryConfig.load(resolve(config))
+    teacher = POLICIES[cfg.teacher]
+    attrs = {"name": cfg.name, "config_file": resolve(config),
+             "communication": teacher.communication}  # fmt: skip
+    return type(f"MemoryTeam_{cfg.name}", (MemoryTeam,), attrs)
