@@ -66,8 +66,10 @@ class MemoryAgent(MemoryCandidates, HeuristicAgent):
         return self._job_for(cands[best], avoid)
 
     def trace(self) -> dict:
-        """The pointer's last choice (kind, its probability, how many candidates it had)."""
-        return dict(self._choice)
+        """The pointer's choice in this step, if it made one (kind, its probability, how many
+        candidates it had): recordings show it (``agents/NAME/choice``)."""
+        choice, self._choice = self._choice, {}
+        return choice
 
 
 class MemoryTeam(HeuristicTeam):

@@ -180,8 +180,14 @@ class EpisodeRecorder:
         rec.log("metrics/comm_per_agent_step", rr.Scalars(channel.total / (max(t, 1) * n)))
 
     def traced(self, t: int, traces: dict) -> None:
-        """HanGrCom's T and groups, decided at step ``t`` (shown with that step's messages)."""
+        """HanGrCom's T and groups, decided at step ``t`` (shown with that step's messages), and
+        the object-memory pointer's choices of job."""
         self._handshake = None
+        for name, tr in traces.items():
+            if "job" in tr:
+                self.rec.set_time("step", sequence=t + 1)
+                text = f"{tr['job']} (p {tr['p']:.2f} of {tr['candidates']} candidates)"
+                self.rec.log(f"agents/{name}/choice", rr.TextLog(text))
         reported = [tr for tr in traces.values() if "T" in tr]
         if not reported:
             return

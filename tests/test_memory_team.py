@@ -1,0 +1,105 @@
+"""The object-memory team: its candidates, its pointer, its training data and its trainer."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import torch
+
+from maniskill_tidy.policies.agent_config import MemoryConfig
+
+
+def memory_config(tmp_path: Path, dataset: Path, name: str = "mem", **extra) -> Path:
+    fields = {"name": name, "out": str(tmp_path / name), "dataset": str(dataset),
+              "work": str(tmp_path / "work"), "train_demos": "{starts: 1, tasks: 1, houses: 1}",
+              "val_demos": "{starts: 1, tasks: 1, houses: 1}", "train": "{epochs: 3}",
+              "val_episodes": 0, **extra}  # fmt: skip
+    path = tmp_path / f"{name}.yaml"
+    path.write_text("trainer: memory\n" + "".join(f"{k}: {v}\n" for k, v in fields.items()))
+    return path
+
+
+def test_recording_plays_as_the_teacher_and_every_choice_is_a_candidate(small_dataset, tmp_path):
+    from maniskill_tidy.eval.runner import RunConfig, make_env, run_episode
+    from maniskill_tidy.policies import make_team
+    from maniskill_tidy.policies.memory import memory_team_class
+    from maniskill_tidy.policies.memory_candidates import KINDS, SLOTS
+
+    recording = memory_team_class(memory_config(tmp_path, small_dataset))(recording=True)
+    env = make_env(RunConfig("heuristic-detection", "I", "train", str(small_dataset)))
+    try:
+        teacher = run_episode(env, make_team("heuristic-detection"), 0, 0).to_dict()
+        recorded = run_episode(env, recording, 0, 0).to_dict()
+    finally:
+        env.close()
+    teacher.pop("seconds"), recorded.pop("seconds")
+    assert recorded == teacher  # keeping the candidates changes nothing the team does
+    decisions = [d for a in recording.made for d in a.decisions]
+    assert len(decisions) > 10
+    for _, rows, slot in decisions:
+        n = int((rows.kind >= 0).sum())
+        assert slot is not None and 0 <= slot < n <= SLOTS
+        assert (rows.kind[:n] >= 0).all() and (rows.kind[n:] == -1).all()  # padding at the end
+        assert rows.kind[n - 1] == KINDS.index("park")  # stopping is always a candidate
+    manipulator = recording.made[2]  # Setting I: low scout, high scout, manipulator
+    kinds = {KINDS[int(r.kind[s])] for _, r, s in manipulator.decisions}
+    assert {"fetch", "place"} <= kinds  # it tidied something, so it chose both
+
+
+def test_the_pointer_ignores_padding_and_never_points_at_it():
+    from maniskill_tidy.models.checkpoints import type_vectors
+    from maniskill_tidy.models.memory_pointer import MemoryPointer
+
+    torch.manual_seed(0)
+    model = MemoryPointer(type_vectors(), kinds=6, receptacles=10, numeric=9, context=10).eval()
+    g = torch.Generator().manual_seed(1)
+    kind = torch.tensor([[0, 0, 3, 5]])
+    types = torch.randint(0, 5, (1, 4), generator=g)
+    rest = torch.randint(0, 11, (1, 4), generator=g)
+    numeric, context = torch.rand(1, 4, 9, generator=g), torch.rand(1, 10, generator=g)
+    pad = torch.full((1, 3), -1)
+    with torch.no_grad():
+        short = model(kind, types, rest, numeric, context)
+        long = model(torch.cat([kind, pad], 1), torch.cat([types, pad.abs()], 1),
+                     torch.cat([rest, pad.abs()], 1), torch.cat([numeric, torch.rand(1, 3, 9)], 1),
+                     context)  # fmt: skip
+    assert torch.allclose(long[0, :4], short[0], atol=1e-5)
+    assert torch.isinf(long[0, 4:]).all() and int(long.argmax()) < 4
+
+
+def test_memory_trains_seeded_and_its_team_plays(small_dataset, tmp_path):
+    from maniskill_tidy.training.memory_trainer import train_memory
+
+    first = memory_config(tmp_path, small_dataset, "a", val_episodes=1)
+    card = train_memory(first, "I", progress=False)
+    manifest = card["data"]["train"]
+    assert manifest["rows"] > 10 and manifest["unmatched"] == 0
+    assert card["val"]["by_kind"] and 0 <= card["val"]["balanced"] <= 1
+    played = card["closed_loop"]
+    assert played["student"]["episodes"] == played["teacher"]["episodes"] == 1
+    folder = tmp_path / "a" / "setting_I"
+    assert (folder / "curve.png").read_bytes()[:4] == b"\x89PNG"
+    assert "behaviour cloning" in (folder / "MODEL_CARD.md").read_text()
+    (tmp_path / "work" / "setting_I" / "pointer.ckpt").unlink()  # the same data, trained again
+    again = train_memory(memory_config(tmp_path, small_dataset, "b"), "I", progress=False)
+    assert again["data"]["train"]["data_hash"] == manifest["data_hash"]
+    a = torch.load(folder / "model.pt", weights_only=False)["state"]
+    b = torch.load(tmp_path / "b" / "setting_I" / "model.pt", weights_only=False)["state"]
+    assert all(torch.equal(a[k], b[k]) for k in a)  # same seed, same data: the same weights
+
+
+def test_a_bad_memory_config_is_refused_in_one_line(tmp_path, small_dataset):
+    from maniskill_tidy.policies import POLICIES, team_class
+    from maniskill_tidy.policies.memory import MemoryTeam
+
+    shipped = team_class("agents/memory.yaml")
+    assert issubclass(shipped, MemoryTeam)
+    assert shipped.communication == POLICIES["memory"].communication == "detection"
+    with pytest.raises(ValueError, match="teacher 'heuristic-central': expected one of"):
+        MemoryConfig.load(memory_config(tmp_path, small_dataset, teacher="heuristic-central"))
+    with pytest.raises(ValueError, match="unknown model or train keys \\['width'\\]"):
+        MemoryConfig.load(memory_config(tmp_path, small_dataset, model="{width: 3}"))
+    untrained = team_class(str(memory_config(tmp_path, small_dataset, "untrained")))
+    why = untrained.missing_model(((1, 0, 0), (1, 0, 1), (1, 1, 1)))
+    assert "not found; train it with `maniskill-tidy train" in why
