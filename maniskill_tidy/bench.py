@@ -119,7 +119,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--teams", type=_teams, default=None,
         help="teams bench: the teams to time, comma-separated (policies or agents/*.yaml; "
-        "default: heuristic-none, heuristic-broadcast, hangrcom)",
+        "default: heuristic-none, heuristic-broadcast, hangrcom, memory)",
     )  # fmt: skip
     parser.add_argument(
         "--looks", type=_looks, default=tuple(LOOKS.values()),

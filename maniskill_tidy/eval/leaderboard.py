@@ -35,6 +35,7 @@ ORDER = (
     "heuristic-detection",
     "heuristic-broadcast",
     "heuristic-central",
+    "memory",  # beyond the paper: heuristic memory, a learned choice of job
     "wo_know",
     "wo_misobjdec",
     "wo_rearecpre",

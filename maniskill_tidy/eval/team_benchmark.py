@@ -24,7 +24,7 @@ from maniskill_tidy.eval.episode import Execution, play_episode
 from maniskill_tidy.eval.runner import RunConfig, evaluate, make_env, run_dir, select
 from maniskill_tidy.policies import make_team
 
-TEAMS = ("heuristic-none", "heuristic-broadcast", "hangrcom")
+TEAMS = ("heuristic-none", "heuristic-broadcast", "hangrcom", "memory")
 
 
 class ActionLog:
