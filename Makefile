@@ -31,6 +31,7 @@ demo: setup
 	$(PY) -m maniskill_tidy.cli eval --env HeteroTidy-v2 --policy expert --setting I --split test --episodes 5 --dataset $(DEMO_DIR)/dataset --out $(DEMO_DIR)
 	$(PY) -m maniskill_tidy.cli eval --policy heuristic-broadcast --setting I --split test --episodes 2 --dataset $(DEMO_DIR)/dataset --record all --out $(DEMO_DIR)
 	$(PY) -m maniskill_tidy.cli eval --policy hangrcom --setting I --split test --episodes 2 --dataset $(DEMO_DIR)/dataset --record all --out $(DEMO_DIR)
+	$(PY) -m maniskill_tidy.cli eval --policy memory --setting I --split test --episodes 2 --dataset $(DEMO_DIR)/dataset --record all --out $(DEMO_DIR)
 	$(PY) -m maniskill_tidy.cli leaderboard --root $(DEMO_DIR)/eval
 	@echo "demo pictures: $(DEMO_DIR)/looks.png (v1 and v2) $(DEMO_DIR)/house.png $(DEMO_DIR)/dataset-stats.png $(DEMO_DIR)/episode/*.png $(DEMO_DIR)/map.png"
 	@echo "demo evaluation: $(DEMO_DIR)/eval/LEADERBOARD.md; recordings: $(DEMO_DIR)/recordings (maniskill-tidy replay FILE)"
