@@ -49,7 +49,7 @@ def replay(data: Path, policy: str, setting: str, episodes: int) -> None:
         env.close()
 
 
-@pytest.mark.parametrize("policy", ["expert", "heuristic-none", "hangrcom"])
+@pytest.mark.parametrize("policy", ["expert", "heuristic-none", "hangrcom", "memory"])
 def test_a_committed_episode_replays_identically(tidy120, policy):
     replay(tidy120, policy, "I", 1)
 
@@ -63,6 +63,8 @@ def test_a_committed_episode_replays_identically(tidy120, policy):
         ("heuristic-broadcast", "I"),
         ("hangrcom", "I"),
         ("hangrcom", "II"),
+        ("memory", "I"),
+        ("memory", "II"),
     ],
 )
 def test_committed_episodes_replay_identically(tidy120, policy, setting):
