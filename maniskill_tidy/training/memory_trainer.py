@@ -218,7 +218,7 @@ def plot_curve(card: dict, out: Path) -> Path:
     curve = card["curve"]
     epochs = [c["epoch"] for c in curve]
     fig, (a, b) = plt.subplots(1, 2, figsize=(8, 3))
-    a.plot(epochs, [c["train_loss"] for c in curve], label="train")
+    a.plot(epochs, [c["train_loss"] for c in curve], label="train (weighted by kind)")
     a.plot(epochs, [c["val_loss"] for c in curve], label="val")
     a.set(xlabel="epoch", ylabel="cross-entropy", title="loss")
     a.legend()
