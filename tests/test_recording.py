@@ -101,3 +101,24 @@ def test_a_learned_teams_recording_shows_t_and_its_handshake_groups(tmp_path, le
     nodes = [args[0] for where, args in recorder.logged if where == "comm/groups"]
     labels = [str(n.labels.as_arrow_array().to_pylist()) for n in nodes if hasattr(n, "labels")]
     assert len(labels) == 3 and all("(group 0)" in text for text in labels), labels
+
+
+def test_the_memory_teams_recording_shows_each_choice_of_job(tmp_path):
+    """The object-memory team's pointer logs what it chose (agents/NAME/choice) when it
+    chooses: in the first step every agent chooses its first job."""
+    env = make_env(RunConfig("memory", "I", "test", None, 1), images=True)
+    env.unwrapped.max_steps = 2
+    recorder = LogSpy(tmp_path)
+    try:
+        run_episode(env, make_team("memory"), 0, 0, recorder)
+    finally:
+        env.close()
+    (path,) = tmp_path.glob("*.rrd")
+    printed = subprocess.run(
+        [_rerun(), "rrd", "print", "--verbose", str(path)], capture_output=True, text=True
+    ).stdout
+    paths = set(re.findall(r"(/agents/[A-Za-z0-9_]+/choice)", printed))
+    assert paths == {f"/agents/agent_{i}/choice" for i in range(3)}
+    texts = [str(args[0].text.as_arrow_array().to_pylist()) for where, args in recorder.logged
+             if where.endswith("/choice")]  # fmt: skip
+    assert texts and all(" candidates)" in t and "(p " in t for t in texts), texts

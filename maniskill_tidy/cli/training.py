@@ -164,9 +164,11 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     env_option(dm)
     dm.set_defaults(func=_demos)
 
-    tr = sub.add_parser("train", help="train the paper's learned modules (CPU)")
+    tr = sub.add_parser(
+        "train", help="train learned modules: the paper's, QMIX, the object-memory team (CPU)"
+    )
     tr.add_argument(
-        "what", help="`perception`, or an agent config (agents/hangrcom.yaml) to train by BC"
+        "what", help="`perception`, or an agent config (agents/hangrcom.yaml, agents/memory.yaml)"
     )
     tr.add_argument("--setting", default="I", help="with an agent config: I or II")
     tr.add_argument("--dataset", help="perception: dataset directory (data/tidy120)")
