@@ -124,7 +124,7 @@ class MemoryCandidates:
 
     def _rows(self, cands: list[Candidate], dist: Distances) -> Rows:
         catalog = load_catalog()
-        n = len(cands)
+        assert len(cands) <= SLOTS
         kind = np.full(SLOTS, -1, np.int8)
         types = np.full(SLOTS, len(catalog.categories), np.int16)
         rest = np.full(SLOTS, len(catalog.receptacles), np.int16)
@@ -135,7 +135,7 @@ class MemoryCandidates:
             for name, (c, t) in self.teammates.items()
             if name != self.name and self.t - t <= TEAMMATE_STEPS and name not in self.parked
         ]
-        claims = [(t, np.asarray(nav.center(*c))) for t, c in self.claims.values()]
+        claims = [(typ, np.asarray(nav.center(*c))) for typ, c in self.claims.values()]
         nearest: dict[str, float] = {}
         rank: dict[str, int] = {}
         for i, c in enumerate(cands):
@@ -160,10 +160,10 @@ class MemoryCandidates:
                 float(
                     c.kind in ("fetch", "look")
                     and any(
-                        t == c.object_type and float(np.hypot(*(xy - at))) < metres
-                        for t, at in claims
+                        claimed == c.object_type and float(np.hypot(*(xy - at))) < metres
+                        for claimed, at in claims
                     )
-                ),  # fmt: skip
+                ),
                 sum(float(np.hypot(*(xy - at))) < metres for _, at, _ in others) / 3,
                 sum(abs(oc[0] - cell[0]) + abs(oc[1] - cell[1]) < 6 for *_, oc in others) / 3,
                 float(c.position[2]),
@@ -185,7 +185,6 @@ class MemoryCandidates:
             ],
             np.float32,
         )
-        assert n <= SLOTS
         return Rows(kind, types, rest, numeric, context)
 
 
