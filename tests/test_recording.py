@@ -17,6 +17,13 @@ def _rerun() -> str:
     return shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
 
 
+def _printed(path: Path) -> str:
+    """``rerun rrd print --verbose``: every entity and component of a recording."""
+    return subprocess.run(
+        [_rerun(), "rrd", "print", "--verbose", str(path)], capture_output=True, text=True
+    ).stdout
+
+
 def test_recording_holds_images_poses_messages_and_metrics(tmp_path):
     cfg = RunConfig("expert", "I", "test", None, 1)
     env = make_env(cfg, images=True)
@@ -90,9 +97,7 @@ def test_a_learned_teams_recording_shows_t_and_its_handshake_groups(tmp_path, le
     finally:
         env.close()
     (path,) = tmp_path.glob("*.rrd")
-    printed = subprocess.run(
-        [_rerun(), "rrd", "print", "--verbose", str(path)], capture_output=True, text=True
-    ).stdout
+    printed = _printed(path)
     paths = set(re.findall(r"(/(?:agents|comm)[A-Za-z0-9_/]*)", printed))
     expected = {"/comm/T", "/comm/groups"} | {
         f"/agents/agent_{i}/{leaf}" for i in range(3) for leaf in ("attention", "subtask")
@@ -114,9 +119,7 @@ def test_the_memory_teams_recording_shows_each_choice_of_job(tmp_path):
     finally:
         env.close()
     (path,) = tmp_path.glob("*.rrd")
-    printed = subprocess.run(
-        [_rerun(), "rrd", "print", "--verbose", str(path)], capture_output=True, text=True
-    ).stdout
+    printed = _printed(path)
     paths = set(re.findall(r"(/agents/[A-Za-z0-9_]+/choice)", printed))
     assert paths == {f"/agents/agent_{i}/choice" for i in range(3)}
     texts = [str(args[0].text.as_arrow_array().to_pylist()) for where, args in recorder.logged

@@ -12,6 +12,7 @@ read, is refused in one line (:class:`CheckpointError`) before anything is writt
 
 from __future__ import annotations
 
+import hashlib
 import io
 import json
 from dataclasses import asdict
@@ -56,6 +57,19 @@ def save(folder: Path, payload: dict, config: dict | None = None) -> None:
     write_atomic(folder / WEIGHTS, buf.getvalue())
     if config is not None:
         write_atomic(folder / "config.json", json.dumps(config, indent=1).encode())
+
+
+def weights_digest(*folders: Path) -> str:
+    """A fingerprint of the weights in ``folders``' ``model.pt`` files (16 hex digits): the
+    tensors, not the files, so that a retraining that reproduces them keeps it. Eval runs record
+    it and refuse to resume with other weights."""
+    digest = hashlib.sha256()
+    for folder in folders:
+        state = torch.load(Path(folder) / WEIGHTS, weights_only=False)["state"]
+        for key in sorted(state):
+            digest.update(key.encode())
+            digest.update(state[key].cpu().contiguous().numpy().tobytes())
+    return digest.hexdigest()[:16]
 
 
 def weights_sha256(folder: Path) -> str:

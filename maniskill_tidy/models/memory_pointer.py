@@ -6,7 +6,7 @@ type's word vector and a learned embedding), its receptacle type and its numbers
 the agent's context; one self-attention layer lets every candidate see the others (what is
 nearest is a property of the set), and a linear layer scores each. The softmax over the scores
 is the choice; padded slots (kind -1) never win. It runs when the agent needs a new job, not
-every step: a few hundred microseconds per decision on one thread.
+every step (``bench --only teams`` times the team).
 """
 
 from __future__ import annotations

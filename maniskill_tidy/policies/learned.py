@@ -15,7 +15,6 @@ channel, so AvgCom counts all of it.
 
 from __future__ import annotations
 
-import hashlib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import ClassVar
@@ -32,6 +31,7 @@ from maniskill_tidy.models.checkpoints import (
     load_decision,
     load_perception,
     verify,
+    weights_digest,
 )
 from maniskill_tidy.models.communication import TASK, scheme
 from maniskill_tidy.models.decision import DecisionConfig, crop_layout, goal_maps, suspects
@@ -382,14 +382,7 @@ class LearnedTeam(Team):
         models."""
 
         cfg = AgentConfig.load(resolve(cls.config_file))
-        digest = hashlib.sha256()
-        for folder in (cls.model_folder(team), resolve(cfg.perception)):
-            # the weights, not the file: a retraining that reproduces them keeps the hash
-            state = torch.load(folder / "model.pt", weights_only=False)["state"]
-            for key in sorted(state):
-                digest.update(key.encode())
-                digest.update(state[key].cpu().contiguous().numpy().tobytes())
-        return digest.hexdigest()[:16]
+        return weights_digest(cls.model_folder(team), resolve(cfg.perception))
 
     def models(self, capabilities: list) -> tuple:
         """The decision model trained for this team, and the frozen perception model."""

@@ -20,13 +20,17 @@ heuristic agent's does (``python -m maniskill_tidy.bench --only teams --teams me
 
 from __future__ import annotations
 
-import hashlib
 from pathlib import Path
 from typing import ClassVar
 
 import torch
 
-from maniskill_tidy.models.checkpoints import CheckpointError, load_memory, verify
+from maniskill_tidy.models.checkpoints import (
+    CheckpointError,
+    load_memory,
+    verify,
+    weights_digest,
+)
 from maniskill_tidy.policies.agent_config import MemoryConfig
 from maniskill_tidy.policies.base import Agent, PublicInfo
 from maniskill_tidy.policies.channel import Outbox
@@ -122,12 +126,7 @@ class MemoryTeam(HeuristicTeam):
     @classmethod
     def model_hash(cls, team: tuple) -> str:
         """A fingerprint of the pointer's weights (a resumed run with others is refused)."""
-        state = torch.load(cls.model_folder(team) / "model.pt", weights_only=False)["state"]
-        digest = hashlib.sha256()
-        for key in sorted(state):
-            digest.update(key.encode())
-            digest.update(state[key].cpu().contiguous().numpy().tobytes())
-        return digest.hexdigest()[:16]
+        return weights_digest(cls.model_folder(team))
 
     def pointer(self, capabilities: list):
         setting = self.trained_setting(capabilities)
