@@ -37,6 +37,15 @@ class MemoryPointer(nn.Module):
         numeric: torch.Tensor, context: torch.Tensor,
     ) -> torch.Tensor:  # fmt: skip
         """Logits (B, N) over the candidates (B, N); -inf where kind is -1."""
+        h, present = self.encode(kind, types, rest, numeric, context)
+        return self.score(h).squeeze(-1).masked_fill(~present, -torch.inf)
+
+    def encode(
+        self, kind: torch.Tensor, types: torch.Tensor, rest: torch.Tensor,
+        numeric: torch.Tensor, context: torch.Tensor,
+    ) -> tuple[torch.Tensor, torch.Tensor]:  # fmt: skip
+        """Each candidate's features after attending to the others (B, N, dim), and which
+        slots hold a candidate (B, N)."""
         kind, types, rest = kind.long(), types.long(), rest.long()
         present = kind >= 0
         x = torch.cat(
@@ -44,5 +53,4 @@ class MemoryPointer(nn.Module):
              self.rest(rest), numeric.float()], dim=-1,
         )  # fmt: skip
         h = self.entry(x) + self.context(context.float())[:, None]
-        h = self.mix(h, src_key_padding_mask=~present)
-        return self.score(h).squeeze(-1).masked_fill(~present, -torch.inf)
+        return self.mix(h, src_key_padding_mask=~present), present

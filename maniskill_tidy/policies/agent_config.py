@@ -208,10 +208,28 @@ class MemoryConfig:
     model: dict = field(default_factory=lambda: {"dim": 64, "heads": 4})
     train: dict = field(default_factory=dict)  # epochs, batch, lr, seed, patience
     val_episodes: int = 20  # closed-loop val episodes for the card, the student's and teacher's
+    # after cloning, PPO on the team's return at job boundaries (training/memory_reinforce.py);
+    # empty: behaviour cloning only
+    reinforce: dict = field(default_factory=dict)
     notes: str = ""
 
     TEACHERS = ("heuristic-none", "heuristic-detection", "heuristic-broadcast")
     TRAIN_KEYS = ("epochs", "batch", "lr", "seed", "patience")
+    REINFORCE = {
+        "iterations": 24,  # rounds of rollouts and updates
+        "episodes": 24,  # train episodes played per round (drawn from the whole train split)
+        "epochs": 4,  # passes over a round's decisions
+        "batch": 512,
+        "lr": 3e-4,
+        "critic_lr": 1e-3,
+        "clip": 0.2,  # PPO's ratio clip
+        "kl": 0.05,  # weight of KL(cloned pointer || pointer): stay near the teacher's rule
+        "gamma": 0.99,  # discount per env step
+        "bonus": 1.0,  # team reward for success, beside 1 / k per object put where it belongs
+        "seed": 0,
+        "val_every": 4,  # rounds between greedy val runs (which select the weights)
+        "val_episodes": 40,
+    }
 
     @classmethod
     def load(cls, path: Path) -> MemoryConfig:
@@ -229,10 +247,18 @@ class MemoryConfig:
             extra = sorted(set(getattr(cfg, section)) - {"starts", "tasks", "houses"})
             if extra:
                 raise ValueError(f"{path}: unknown {section} keys {extra}")
+        extra = sorted(set(cfg.reinforce) - set(cls.REINFORCE))
+        if extra:
+            raise ValueError(f"{path}: unknown reinforce keys {extra}; expected some of "
+                             f"{sorted(cls.REINFORCE)}")  # fmt: skip
         return cfg
 
     def settings(self) -> dict:
         return {"epochs": 30, "batch": 256, "lr": 1e-3, "seed": 0, "patience": 6, **self.train}
+
+    def reinforce_settings(self) -> dict:
+        """PPO's settings (defaults filled in); empty when the config asks for none."""
+        return {**self.REINFORCE, **self.reinforce} if self.reinforce else {}
 
 
 def _checked_keys(path: Path, raw: dict, cls) -> dict:

@@ -23,6 +23,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import ClassVar
 
+import numpy as np
 import torch
 
 from maniskill_tidy.models.checkpoints import (
@@ -48,8 +49,13 @@ class MemoryAgent(MemoryCandidates, HeuristicAgent):
     def __init__(self, name: str, public: PublicInfo, outbox: Outbox, team: MemoryTeam) -> None:
         super().__init__(name, public, outbox, team.communication)
         self.pointer = None if team.recording else team.pointer(public.capabilities)
-        self.decisions: list[tuple] = []  # teacher mode: (step, rows, teacher's slot)
+        # teacher mode: (step, rows, the teacher's slot); sampling: (step, rows, slot, log p)
+        self.decisions: list[tuple] = []
         self._choice: dict = {}
+        self.sampler = None  # the heuristic's own ``rng`` breaks its ties, as the teacher's
+        if team.sampling_seed is not None:  # one stream per run seed, episode and agent
+            agent = public.agents.index(name)
+            self.sampler = np.random.default_rng([team.sampling_seed, public.seed, agent])
 
     def _new_job(self, avoid: set[Cell]) -> Job:
         dist = self.planner.distances(self.state.cell, set(self.parked.values()))
@@ -63,8 +69,13 @@ class MemoryAgent(MemoryCandidates, HeuristicAgent):
                   rows.context[None])  # fmt: skip
         with torch.inference_mode():
             logits = self.pointer(*map(torch.from_numpy, inputs))[0]
-        best = int(logits.argmax())
         p = torch.softmax(logits, 0)
+        if self.sampler is None:
+            best = int(logits.argmax())
+        else:  # training's rollouts: a choice drawn from the pointer's distribution
+            q = p.double().numpy()
+            best = int(self.sampler.choice(len(q), p=q / q.sum()))
+            self.decisions.append((self.t, rows, best, float(torch.log_softmax(logits, 0)[best])))
         self._choice = {"job": KINDS[int(rows.kind[best])], "p": round(float(p[best]), 3),
                         "candidates": len(cands)}  # fmt: skip
         return self._job_for(cands[best], avoid)
@@ -87,13 +98,17 @@ class MemoryTeam(HeuristicTeam):
     )
     config_file: ClassVar[Path] = DEFAULT_CONFIG
 
-    def __init__(self, recording: bool = False) -> None:
+    def __init__(self, recording: bool = False, sampling_seed: int | None = None) -> None:
         """``recording``: play the teacher's choices and keep every decision's candidates
-        (``MemoryAgent.decisions``, of the agents in ``made``): training data."""
+        (``MemoryAgent.decisions``, of the agents in ``made``): training data.
+        ``sampling_seed``: draw each choice from the pointer's distribution instead of taking
+        the best, and keep it with its log-probability (the rollouts of
+        ``training/memory_reinforce.py``)."""
         from maniskill_tidy.policies.learned import resolve
 
         self.config = MemoryConfig.load(resolve(self.config_file))
         self.recording = recording
+        self.sampling_seed = sampling_seed
         self.made: list[MemoryAgent] = []
         self._loaded: dict = {}
 
@@ -135,9 +150,14 @@ class MemoryTeam(HeuristicTeam):
             self._loaded[setting] = load_memory(self.model_folder(capabilities))[0]
         return self._loaded[setting]
 
+    def use_pointer(self, setting: str, model) -> None:
+        """Play ``model`` in ``setting`` instead of the saved weights (training's rollouts)."""
+        torch.set_num_threads(1)
+        self._loaded[setting] = model.eval()
+
     def make_agent(self, name: str, public: PublicInfo, outbox: Outbox) -> Agent:
         agent = MemoryAgent(name, public, outbox, self)
-        if self.recording:
+        if self.recording or self.sampling_seed is not None:
             self.made.append(agent)
         return agent
 

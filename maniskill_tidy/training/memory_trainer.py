@@ -135,6 +135,11 @@ def train_memory(config: Path, setting: str, progress: bool = True) -> dict:
             bar.set_postfix(val_balanced=f"{v['balanced']:.3f}")
     model.load_state_dict(best_state)
     model.eval()
+    reinforced = {}
+    if cfg.reinforce:
+        from maniskill_tidy.training.memory_reinforce import reinforce_pointer
+
+        model, reinforced = reinforce_pointer(cfg, config, setting, model, sizes, progress)
     folder = Path(cfg.out) / f"setting_{setting}"
     save_memory(model, folder, sizes, {"name": cfg.name, "teacher": cfg.teacher})
     card = {
@@ -144,6 +149,8 @@ def train_memory(config: Path, setting: str, progress: bool = True) -> dict:
         "val": state["best"], "parameters": sum(p.numel() for p in model.parameters()),
         "weights_sha256": weights_sha256(folder),
     }  # fmt: skip
+    if reinforced:
+        card["reinforce"] = reinforced
     # the card's hash first: the closed-loop runs below load the weights through it
     write_atomic(folder / "card.json", json.dumps(card, indent=1).encode())
     card["closed_loop"] = closed_loop(cfg, config, setting, progress)
