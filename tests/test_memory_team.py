@@ -103,3 +103,116 @@ def test_a_bad_memory_config_is_refused_in_one_line(tmp_path, small_dataset):
     untrained = team_class(str(memory_config(tmp_path, small_dataset, "untrained")))
     why = untrained.missing_model(((1, 0, 0), (1, 0, 1), (1, 1, 1)))
     assert "not found; train it with `maniskill-tidy train" in why
+
+
+def test_the_team_return_is_discounted_and_shared_per_step():
+    from maniskill_tidy.training.memory_reinforce import returns
+
+    # 2 misplaced objects: one put where it belongs after step 1, the other after step 3
+    g = returns([0, 0, 1, 1, 2], k=2, success=True, gamma=0.5, bonus=1.0)
+    assert g.tolist() == pytest.approx([0.4375, 0.875, 0.75, 1.5])
+    assert returns([0, 0, 1, 1, 1], k=2, success=False, gamma=0.5, bonus=1.0).tolist() == (
+        pytest.approx([0.25, 0.5, 0.0, 0.0])
+    )
+
+
+def _batch(n: int = 512):
+    """Decisions over (fetch, explore, park) where only choosing the fetch paid."""
+    g = torch.Generator().manual_seed(2)
+    slot = torch.randint(0, 3, (n,), generator=g)
+    return {
+        "kind": torch.tensor([[0, 3, 5, -1]]).repeat(n, 1),
+        "type": torch.full((n, 4), 4),
+        "rest": torch.full((n, 4), 10),
+        "numeric": torch.rand(n, 4, 9, generator=g),
+        "context": torch.rand(n, 10, generator=g),
+        "slot": slot,
+        "logp": torch.full((n,), -1.0986),  # drawn uniformly
+        "ret": (slot == 0).float(),
+    }
+
+
+def test_ppo_moves_the_pointer_towards_what_paid_and_the_kl_term_holds_it_back():
+    import copy
+
+    from maniskill_tidy.models.checkpoints import type_vectors
+    from maniskill_tidy.models.memory_pointer import MemoryPointer
+    from maniskill_tidy.policies.agent_config import MemoryConfig
+    from maniskill_tidy.training.memory_reinforce import Critic, ppo_update
+
+    torch.manual_seed(0)
+    cloned = MemoryPointer(type_vectors(), kinds=6, receptacles=10, numeric=9, context=10)
+    data = _batch()
+    rows = [data[k] for k in ("kind", "type", "rest", "numeric", "context")]
+
+    def fetch_probability(kl: float) -> float:
+        policy, critic = copy.deepcopy(cloned), Critic(cloned)
+        optimisers = (torch.optim.Adam(policy.parameters(), lr=3e-3),
+                      torch.optim.Adam(critic.parameters(), lr=1e-3))  # fmt: skip
+        r = {**MemoryConfig.REINFORCE, "kl": kl, "epochs": 3, "batch": 128}
+        stats = ppo_update(policy, critic, cloned, optimisers, data, r,
+                           torch.Generator().manual_seed(0))  # fmt: skip
+        assert stats["value_loss"] >= 0 and 0 <= stats["clipped"] <= 1
+        with torch.no_grad():
+            return float(torch.softmax(policy(*rows), -1)[:, 0].mean())
+
+    with torch.no_grad():
+        before = float(torch.softmax(cloned(*rows), -1)[:, 0].mean())
+    free, held = fetch_probability(0.0), fetch_probability(20.0)
+    assert free > before + 0.1
+    assert before - 0.02 < held < free
+
+
+def test_drawn_choices_are_seeded_per_episode_and_agent(small_dataset, tmp_path):
+    from maniskill_tidy.eval.runner import RunConfig, make_env, run_episode
+    from maniskill_tidy.knowledge import load_catalog
+    from maniskill_tidy.models.checkpoints import type_vectors
+    from maniskill_tidy.models.memory_pointer import MemoryPointer
+    from maniskill_tidy.policies.memory import memory_team_class
+    from maniskill_tidy.policies.memory_candidates import CONTEXT, KINDS, NUMERIC
+
+    torch.manual_seed(0)  # an untrained pointer: its choices are far from certain
+    receptacles = len(load_catalog().receptacles)
+    model = MemoryPointer(type_vectors(), kinds=len(KINDS), receptacles=receptacles,
+                          numeric=len(NUMERIC), context=len(CONTEXT))  # fmt: skip
+    team_type = memory_team_class(memory_config(tmp_path, small_dataset))
+    env = make_env(RunConfig("heuristic-detection", "I", "train", str(small_dataset)))
+
+    def drawn(seed):
+        team = team_type(sampling_seed=seed)
+        team.use_pointer("I", model)
+        run_episode(env, team, 0, 0)
+        return [[(t, s, round(lp, 6)) for t, _, s, lp in a.decisions] for a in team.made]
+
+    try:
+        first, again, other = drawn(5), drawn(5), drawn(6)
+    finally:
+        env.close()
+    assert first == again and first != other
+    assert all(len(a) > 3 for a in first) and all(lp <= 0 for a in first for *_, lp in a)
+
+
+def test_ppo_fine_tunes_the_clone_and_a_rerun_resumes(small_dataset, tmp_path, monkeypatch):
+    from maniskill_tidy.training import memory_reinforce
+    from maniskill_tidy.training.memory_trainer import train_memory
+
+    ppo = "{iterations: 1, episodes: 1, epochs: 1, val_every: 1, val_episodes: 1}"
+    cfg = memory_config(tmp_path, small_dataset, "ppo", workers=1, reinforce=ppo)
+    card = train_memory(cfg, "I", progress=False)
+    part = card["reinforce"]
+    assert part["rounds"] == 1 and [v["round"] for v in part["val"]] == [0, 1]
+    assert part["curve"][0]["decisions"] > 10 and part["curve"][0]["episodes"] == 1
+    assert part["best"]["placed"] >= part["cloned_val"]["placed"]  # round 0 is the clone
+    folder = tmp_path / "ppo" / "setting_I"
+    assert (folder / "reinforce.png").read_bytes()[:4] == b"\x89PNG"
+    assert "then PPO on the team's return" in (folder / "MODEL_CARD.md").read_text()
+    weights = torch.load(folder / "model.pt", weights_only=False)["state"]
+
+    def nothing_to_play(*args, **kwargs):
+        raise AssertionError("a finished run played again")
+
+    monkeypatch.setattr(memory_reinforce, "_play_all", nothing_to_play)
+    again = train_memory(cfg, "I", progress=False)["reinforce"]
+    assert again["curve"] == part["curve"] and again["best"] == part["best"]
+    resumed = torch.load(folder / "model.pt", weights_only=False)["state"]
+    assert all(torch.equal(weights[k], resumed[k]) for k in weights)

@@ -224,6 +224,7 @@ class MemoryConfig:
         "critic_lr": 1e-3,
         "clip": 0.2,  # PPO's ratio clip
         "kl": 0.05,  # weight of KL(cloned pointer || pointer): stay near the teacher's rule
+        "temperature": 2.0,  # divides the scores of the policy that is drawn from and improved
         "gamma": 0.99,  # discount per env step
         "bonus": 1.0,  # team reward for success, beside 1 / k per object put where it belongs
         "seed": 0,

@@ -56,6 +56,7 @@ class MemoryAgent(MemoryCandidates, HeuristicAgent):
         if team.sampling_seed is not None:  # one stream per run seed, episode and agent
             agent = public.agents.index(name)
             self.sampler = np.random.default_rng([team.sampling_seed, public.seed, agent])
+        self.temperature = team.temperature
 
     def _new_job(self, avoid: set[Cell]) -> Job:
         dist = self.planner.distances(self.state.cell, set(self.parked.values()))
@@ -72,10 +73,11 @@ class MemoryAgent(MemoryCandidates, HeuristicAgent):
         p = torch.softmax(logits, 0)
         if self.sampler is None:
             best = int(logits.argmax())
-        else:  # training's rollouts: a choice drawn from the pointer's distribution
-            q = p.double().numpy()
+        else:  # training's rollouts: a choice drawn from the pointer's tempered distribution
+            tempered = torch.log_softmax(logits / self.temperature, 0)
+            q = tempered.double().exp().numpy()
             best = int(self.sampler.choice(len(q), p=q / q.sum()))
-            self.decisions.append((self.t, rows, best, float(torch.log_softmax(logits, 0)[best])))
+            self.decisions.append((self.t, rows, best, float(tempered[best])))
         self._choice = {"job": KINDS[int(rows.kind[best])], "p": round(float(p[best]), 3),
                         "candidates": len(cands)}  # fmt: skip
         return self._job_for(cands[best], avoid)
@@ -98,17 +100,20 @@ class MemoryTeam(HeuristicTeam):
     )
     config_file: ClassVar[Path] = DEFAULT_CONFIG
 
-    def __init__(self, recording: bool = False, sampling_seed: int | None = None) -> None:
+    def __init__(
+        self, recording: bool = False, sampling_seed: int | None = None, temperature: float = 1.0
+    ) -> None:
         """``recording``: play the teacher's choices and keep every decision's candidates
         (``MemoryAgent.decisions``, of the agents in ``made``): training data.
         ``sampling_seed``: draw each choice from the pointer's distribution instead of taking
         the best, and keep it with its log-probability (the rollouts of
-        ``training/memory_reinforce.py``)."""
+        ``training/memory_reinforce.py``); ``temperature`` divides the scores first (above 1:
+        choices other than the best more often; the best is the same)."""
         from maniskill_tidy.policies.learned import resolve
 
         self.config = MemoryConfig.load(resolve(self.config_file))
         self.recording = recording
-        self.sampling_seed = sampling_seed
+        self.sampling_seed, self.temperature = sampling_seed, temperature
         self.made: list[MemoryAgent] = []
         self._loaded: dict = {}
 

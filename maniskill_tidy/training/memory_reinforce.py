@@ -1,7 +1,10 @@
 """PPO for the object-memory team's pointer at job boundaries, from its cloned weights.
 
 Behaviour cloning (``training/memory_trainer.py``) gives the teacher's rule and no more. Here
-the team plays train episodes with each choice of job drawn from the pointer's distribution.
+the team plays train episodes with each choice of job drawn from the pointer's distribution,
+its scores divided by ``temperature`` (the cloned pointer is so sure of the teacher's choice
+that, drawn as it is, 2 choices in 1000 differ from it, and nothing is learned); that tempered
+distribution is the policy PPO improves, and the agents evaluated take its best choice.
 A choice's return is the team's reward from its step on: 1 / k for each object put where it
 belongs, ``bonus`` when the episode succeeds, discounted by ``gamma`` per step; every agent's
 choices share it (one team, one reward). PPO's clipped objective on advantages over a critic,
@@ -90,15 +93,16 @@ def _pointer(path: str) -> MemoryPointer:
     return model.eval()
 
 
-def _play(job: tuple[int, str, int | None, float, float]) -> dict:
+def _play(job: tuple[int, str, int | None, dict]) -> dict:
     """One episode with the policy in ``path``: drawn choices (``seed``) or the best ones."""
     from maniskill_tidy.eval.episode import play_episode
     from maniskill_tidy.policies.memory import memory_team_class
 
-    index, path, seed, gamma, bonus = job
+    index, path, seed, r = job
+    gamma, bonus, temperature = r["gamma"], r["bonus"], r["temperature"]
     if _worker["path"] != path:
         _worker.update(path=path, model=_pointer(path))
-    team = memory_team_class(_worker["config"])(sampling_seed=seed)
+    team = memory_team_class(_worker["config"])(sampling_seed=seed, temperature=temperature)
     team.use_pointer(_worker["setting"], _worker["model"])
     reward = TeamReward()
     record = play_episode(_worker["env"], team, index, index, [reward])
@@ -124,7 +128,7 @@ def _play_all(
 ) -> list[dict]:  # fmt: skip
     from maniskill_tidy.common.parallel import run_jobs
 
-    jobs = [(i, str(path), seed, r["gamma"], r["bonus"]) for i in indices]
+    jobs = [(i, str(path), seed, r) for i in indices]
     out = []
     with tqdm(total=len(jobs), desc=desc, unit="episode", disable=not progress, leave=False) as bar:
         for _, result in run_jobs(jobs, _play, cfg.workers, init=_init,
@@ -154,18 +158,18 @@ def ppo_update(
     policy: MemoryPointer, critic: Critic, cloned: MemoryPointer, optimisers,
     data: dict[str, torch.Tensor], r: dict, generator: torch.Generator,
 ) -> dict:  # fmt: skip
-    rows = [data[k] for k in INPUTS]
+    rows, temperature = [data[k] for k in INPUTS], r["temperature"]
     with torch.no_grad():
         advantage = data["ret"] - critic(*rows)
         advantage = (advantage - advantage.mean()) / (advantage.std() + 1e-8)
-        cloned_logp = torch.log_softmax(cloned(*rows), -1)
+        cloned_logp = torch.log_softmax(cloned(*rows) / temperature, -1)
     present = data["kind"] >= 0
     # how often a drawn choice was not the one the cloned pointer would take
     off = float((cloned_logp.argmax(-1) != data["slot"]).float().mean())
     stats: dict[str, list] = {"policy_loss": [], "kl_cloned": [], "value_loss": [], "clipped": []}
     for _ in range(r["epochs"]):
         for idx in torch.randperm(len(advantage), generator=generator).split(r["batch"]):
-            logp = torch.log_softmax(policy(*(x[idx] for x in rows)), -1)
+            logp = torch.log_softmax(policy(*(x[idx] for x in rows)) / temperature, -1)
             chosen = logp.gather(1, data["slot"][idx, None])[:, 0]
             ratio = torch.exp(chosen - data["logp"][idx])
             a = advantage[idx]
@@ -306,3 +310,26 @@ def hash_state(model: nn.Module) -> str:
         digest.update(name.encode())
         digest.update(value.detach().float().numpy().tobytes())
     return digest.hexdigest()[:16]
+
+
+def plot_reinforce(card: dict, out: Path) -> Path:
+    """Train episodes (drawn choices) per round, and the greedy val runs that select."""
+    import matplotlib.pyplot as plt
+
+    from maniskill_tidy.common.plotting import save_figure
+
+    r = card["reinforce"]
+    fig, (a, b) = plt.subplots(1, 2, figsize=(8, 3))
+    rounds = [c["round"] for c in r["curve"]]
+    a.plot(rounds, [c["placed"] for c in r["curve"]], label="train, drawn choices")
+    a.plot([v["round"] for v in r["val"]], [v["placed"] for v in r["val"]], "o-",
+           label="val, best choices")  # fmt: skip
+    a.axvline(r["best"]["round"], color="grey", ls=":")
+    a.set(xlabel="round", ylabel="share put where it belongs", title="objects placed")
+    a.legend()
+    b.plot(rounds, [c["kl_cloned"] for c in r["curve"]], label="KL to the cloned pointer")
+    b.plot(rounds, [c["off_cloned"] for c in r["curve"]], label="drawn != cloned's best")
+    b.set(xlabel="round", title="distance from the teacher's rule")
+    b.legend()
+    fig.suptitle(f"{card['name']}, Setting {card['setting']}: PPO")
+    return save_figure(fig, out, dpi=100)

@@ -160,6 +160,10 @@ def train_memory(config: Path, setting: str, progress: bool = True) -> dict:
     write_atomic(folder / "card.json", json.dumps(card, indent=1).encode())
     write_atomic(folder / "MODEL_CARD.md", memory_card(card).encode())
     plot_curve(card, folder / "curve.png")
+    if reinforced:
+        from maniskill_tidy.training.memory_reinforce import plot_reinforce
+
+        plot_reinforce(card, folder / "reinforce.png")
     return card
 
 
@@ -208,6 +212,18 @@ def memory_card(card: dict) -> str:
         f"kinds) {val['balanced']:.3f}, loss {val['loss']:.3f}; by the teacher's kind of job: "
         + ", ".join(f"{k} {v:.3f}" for k, v in val["by_kind"].items()),
     ]
+    if "reinforce" in card:
+        r = card["reinforce"]
+        cloned, best = r["cloned_val"], r["best"]
+        lines.append(
+            f"- then PPO on the team's return at job boundaries: {r['rounds']} rounds of "
+            f"{r['settings']['episodes']} sampled train episodes ({r['seconds']:.0f} s), KL "
+            f"weight {r['settings']['kl']} towards the cloned pointer; on the first "
+            f"{cloned['episodes']} val episodes (best choices), the cloned pointer put "
+            f"{cloned['placed']:.3f} of the objects where they belong (Success "
+            f"{cloned['success']:.3f}); kept: round {best['round']}, {best['placed']:.3f} "
+            f"(Success {best['success']:.3f}). ![PPO](reinforce.png)"
+        )
     for who, m in card.get("closed_loop", {}).items():
         lines.append(
             f"- closed loop, {m['episodes']} val episodes, {who}: Success {m['Success']:.3f}, "
