@@ -227,8 +227,10 @@ def reinforce_pointer(
     optimisers = (torch.optim.Adam(policy.parameters(), lr=r["lr"]),
                   torch.optim.Adam(critic.parameters(), lr=r["critic_lr"]))  # fmt: skip
     digest = hash_state(cloned)
-    key = json.dumps({"reinforce": r, "cloned": digest, "teacher": cfg.teacher, "env": cfg.env,
-                      "dataset": cfg.dataset})  # fmt: skip
+    # more rounds continue a run: everything but their number must be the same
+    same = {k: v for k, v in r.items() if k != "iterations"}
+    key = json.dumps({"reinforce": same, "cloned": digest, "teacher": cfg.teacher,
+                      "env": cfg.env, "dataset": cfg.dataset})  # fmt: skip
     ckpt = work / "state.pt"
     state = {"round": 0, "curve": [], "val": [], "best": None, "seconds": 0.0}
     best_state = copy.deepcopy(cloned.state_dict())
@@ -240,11 +242,18 @@ def reinforce_pointer(
             for o, s in zip(optimisers, saved["optimisers"], strict=True):
                 o.load_state_dict(s)
             state, best_state = saved["state"], saved["best_state"]
+    if state["round"] > r["iterations"]:
+        raise ValueError(
+            f"{work} holds {state['round']} PPO rounds, more than the config's "
+            f"{r['iterations']} iterations; raise them or remove that folder"
+        )
 
     def validate(round_: int, path: Path) -> None:
         played = _play_all(cfg, config, setting, "val", val_indices, path, None, r,
                            f"val, round {round_}", progress)  # fmt: skip
-        point = {"round": round_, **summary(played)}
+        # each episode kept, so that two rounds compare over the same episodes (paired)
+        each = [[e["index"], int(e["success"]), e["reasonable"], e["k"]] for e in played]
+        point = {"round": round_, **summary(played), "per_episode": each}
         state["val"].append(point)
         if state["best"] is None or point["placed"] > state["best"]["placed"]:
             state["best"] = point
