@@ -164,45 +164,44 @@ def test_ppo_moves_the_pointer_towards_what_paid_and_the_kl_term_holds_it_back()
 
 
 def test_drawn_choices_are_seeded_per_episode_and_agent(small_dataset, tmp_path):
-    from maniskill_tidy.eval.runner import RunConfig, make_env, run_episode
+    # played in worker processes, as training plays them (and so no renderer in this one)
     from maniskill_tidy.knowledge import load_catalog
     from maniskill_tidy.models.checkpoints import type_vectors
     from maniskill_tidy.models.memory_pointer import MemoryPointer
-    from maniskill_tidy.policies.memory import memory_team_class
     from maniskill_tidy.policies.memory_candidates import CONTEXT, KINDS, NUMERIC
+    from maniskill_tidy.training.memory_reinforce import _play_all, _save_policy
 
     torch.manual_seed(0)  # an untrained pointer: its choices are far from certain
-    receptacles = len(load_catalog().receptacles)
-    model = MemoryPointer(type_vectors(), kinds=len(KINDS), receptacles=receptacles,
-                          numeric=len(NUMERIC), context=len(CONTEXT))  # fmt: skip
-    team_type = memory_team_class(memory_config(tmp_path, small_dataset))
-    env = make_env(RunConfig("heuristic-detection", "I", "train", str(small_dataset)))
+    sizes = {"kinds": len(KINDS), "receptacles": len(load_catalog().receptacles),
+             "numeric": len(NUMERIC), "context": len(CONTEXT)}  # fmt: skip
+    policy = tmp_path / "policy.pt"
+    _save_policy(MemoryPointer(type_vectors(), **sizes), sizes, policy)
+    config = memory_config(tmp_path, small_dataset, workers=2)
+    cfg, r = MemoryConfig.load(config), MemoryConfig.REINFORCE
 
     def drawn(seed):
-        team = team_type(sampling_seed=seed)
-        team.use_pointer("I", model)
-        run_episode(env, team, 0, 0)
-        return [[(t, s, round(lp, 6)) for t, _, s, lp in a.decisions] for a in team.made]
+        played = _play_all(cfg, config, "I", "train", [0, 1], policy, seed, r, "", False)
+        return [(e["slot"].tolist(), e["logp"].round(6).tolist()) for e in played]
 
-    try:
-        first, again, other = drawn(5), drawn(5), drawn(6)
-    finally:
-        env.close()
+    first, again, other = drawn(5), drawn(5), drawn(6)
     assert first == again and first != other
-    assert all(first) and sum(map(len, first)) > 5  # every agent chose (an untrained one parks)
-    assert all(lp <= 0 for a in first for *_, lp in a)
+    assert all(slots for slots, _ in first) and sum(len(slots) for slots, _ in first) > 5
+    assert all(lp <= 0 for _, logps in first for lp in logps)
 
 
 def test_ppo_fine_tunes_the_clone_and_a_rerun_resumes(small_dataset, tmp_path, monkeypatch):
     from maniskill_tidy.training import memory_reinforce
     from maniskill_tidy.training.memory_trainer import train_memory
 
-    ppo = "{iterations: 1, episodes: 1, epochs: 1, val_every: 1, val_episodes: 1}"
-    cfg = memory_config(tmp_path, small_dataset, "ppo", workers=1, reinforce=ppo)
+    # two of everything, so that every part plays in worker processes (no renderer here)
+    ppo = "{iterations: 1, episodes: 2, epochs: 1, val_every: 1, val_episodes: 2}"
+    two = "{starts: 1, tasks: 1, houses: 2}"
+    cfg = memory_config(tmp_path, small_dataset, "ppo", workers=2, reinforce=ppo,
+                        train_demos=two, val_demos=two)  # fmt: skip
     card = train_memory(cfg, "I", progress=False)
     part = card["reinforce"]
     assert part["rounds"] == 1 and [v["round"] for v in part["val"]] == [0, 1]
-    assert part["curve"][0]["decisions"] > 0 and part["curve"][0]["episodes"] == 1
+    assert part["curve"][0]["decisions"] > 0 and part["curve"][0]["episodes"] == 2
     assert part["best"]["placed"] >= part["cloned_val"]["placed"]  # round 0 is the clone
     folder = tmp_path / "ppo" / "setting_I"
     assert (folder / "reinforce.png").read_bytes()[:4] == b"\x89PNG"
