@@ -1,3 +1,11 @@
+"""Shared fixtures.
+
+A test that plays episodes through training code (``train_memory``, the PPO stage) should give
+its config ``workers: 2`` and two jobs or more, so that they play in worker processes: with
+the renderers of two such tests made and closed in pytest's own process, the suite died with
+a segmentation fault two files later, in test_every_team_plays_a_whole_episode (twice).
+"""
+
 from pathlib import Path
 
 import pytest
