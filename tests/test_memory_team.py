@@ -100,6 +100,8 @@ def test_a_bad_memory_config_is_refused_in_one_line(tmp_path, small_dataset):
         MemoryConfig.load(memory_config(tmp_path, small_dataset, teacher="heuristic-central"))
     with pytest.raises(ValueError, match="unknown model or train keys \\['width'\\]"):
         MemoryConfig.load(memory_config(tmp_path, small_dataset, model="{width: 3}"))
+    with pytest.raises(ValueError, match="unknown reinforce keys \\['steps'\\]; expected some of"):
+        MemoryConfig.load(memory_config(tmp_path, small_dataset, reinforce="{steps: 3}"))
     untrained = team_class(str(memory_config(tmp_path, small_dataset, "untrained")))
     why = untrained.missing_model(((1, 0, 0), (1, 0, 1), (1, 1, 1)))
     assert "not found; train it with `maniskill-tidy train" in why
