@@ -40,11 +40,12 @@ class CheckpointError(ValueError):
     """A checkpoint that is missing, unreadable or not the one its card describes."""
 
 
-def _half(model: torch.nn.Module) -> dict:
+def half_state(model: torch.nn.Module) -> dict:
+    """The weights as they ship: floating tensors rounded to fp16."""
     return {k: (v.half() if v.is_floating_point() else v) for k, v in model.state_dict().items()}
 
 
-def _float(state: dict) -> dict:
+def float_state(state: dict) -> dict:
     return {k: (v.float() if v.is_floating_point() else v) for k, v in state.items()}
 
 
@@ -63,12 +64,16 @@ def weights_digest(*folders: Path) -> str:
     """A fingerprint of the weights in ``folders``' ``model.pt`` files (16 hex digits): the
     tensors, not the files, so that a retraining that reproduces them keeps it. Eval runs record
     it and refuse to resume with other weights."""
+    return state_digest(torch.load(Path(f) / WEIGHTS, weights_only=False)["state"] for f in folders)
+
+
+def state_digest(states) -> str:
+    """The fingerprint of :func:`weights_digest` over state dicts (16 hex digits)."""
     digest = hashlib.sha256()
-    for folder in folders:
-        state = torch.load(Path(folder) / WEIGHTS, weights_only=False)["state"]
+    for state in states:
         for key in sorted(state):
             digest.update(key.encode())
-            digest.update(state[key].cpu().contiguous().numpy().tobytes())
+            digest.update(state[key].detach().cpu().contiguous().numpy().tobytes())
     return digest.hexdigest()[:16]
 
 
@@ -121,7 +126,7 @@ def for_agents(model: torch.nn.Module) -> torch.nn.Module:
 
 # ----------------------------------------------------------------- the decision team
 def save_decision(model: TeamDecision, folder: Path, extra: dict) -> None:
-    payload = {"config": asdict(model.cfg), "agents": len(model.agents), "state": _half(model)}
+    payload = {"config": asdict(model.cfg), "agents": len(model.agents), "state": half_state(model)}
     payload |= extra
     save(folder, payload, payload | {"state": None})
 
@@ -130,7 +135,7 @@ def load_decision(folder: Path) -> tuple[TeamDecision, dict]:
     """A trained team model and what was saved with it."""
     saved = read(folder, "maniskill-tidy train CONFIG --setting S")
     model = TeamDecision(DecisionConfig(**saved["config"]), saved["agents"])
-    model.load_state_dict(_float(saved["state"]))
+    model.load_state_dict(float_state(saved["state"]))
     return model.eval(), saved
 
 
@@ -142,7 +147,7 @@ def type_vectors() -> torch.Tensor:
 
 
 def save_perception(model: PerceptionModel, folder: Path) -> None:
-    payload = {"config": asdict(model.cfg), "nodes": list(model.nodes), "state": _half(model)}
+    payload = {"config": asdict(model.cfg), "nodes": list(model.nodes), "state": half_state(model)}
     save(folder, payload, asdict(model.cfg))
 
 
@@ -163,30 +168,35 @@ def load_perception(folder: Path) -> PerceptionModel:
         state["gcn.features"].float(),
     )
     model = PerceptionModel(PerceptionConfig(**saved["config"]), type_vectors(), graph)
-    model.load_state_dict(_float(state))
+    model.load_state_dict(float_state(state))
     return model.eval()
 
 
 # ----------------------------------------------------------------------------- QMIX
 def save_qmix(model: QmixTeamModel, folder: Path, extra: dict) -> None:
-    save(folder, {"agents": model.n, "feature": model.feature, "state": _half(model), **extra})
+    save(folder, {"agents": model.n, "feature": model.feature, "state": half_state(model), **extra})
 
 
 def load_qmix(folder: Path) -> tuple[QmixTeamModel, dict]:
     saved = read(folder, "maniskill-tidy train agents/qmix.yaml --setting S")
     model = QmixTeamModel(saved["agents"], saved["feature"])
-    model.load_state_dict(_float(saved["state"]))
+    model.load_state_dict(float_state(saved["state"]))
     return model.eval(), saved
 
 
 def save_memory(model: MemoryPointer, folder: Path, sizes: dict, extra: dict) -> None:
     """``sizes``: the pointer's constructor arguments (kinds, receptacles, numeric, context,
     dim, heads), so that loading needs nothing else."""
-    save(folder, {"sizes": sizes, "state": _half(model), **extra}, sizes)
+    save(folder, {"sizes": sizes, "state": half_state(model), **extra}, sizes)
 
 
 def load_memory(folder: Path) -> tuple[MemoryPointer, dict]:
     saved = read(folder, "maniskill-tidy train agents/memory.yaml --setting S")
+    return memory_pointer(saved), saved
+
+
+def memory_pointer(saved: dict) -> MemoryPointer:
+    """The pointer of a saved payload (``sizes`` and fp16 ``state``), in eval mode."""
     model = MemoryPointer(type_vectors(), **saved["sizes"])
-    model.load_state_dict(_float(saved["state"]))
-    return model.eval(), saved
+    model.load_state_dict(float_state(saved["state"]))
+    return model.eval()

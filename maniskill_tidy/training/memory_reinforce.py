@@ -32,7 +32,13 @@ from torch import nn
 from tqdm import tqdm
 
 from maniskill_tidy.common.files import write_atomic
-from maniskill_tidy.models.checkpoints import type_vectors
+from maniskill_tidy.models.checkpoints import (
+    float_state,
+    half_state,
+    memory_pointer,
+    state_digest,
+    type_vectors,
+)
 from maniskill_tidy.models.memory_pointer import MemoryPointer
 from maniskill_tidy.policies.agent_config import MemoryConfig
 
@@ -85,14 +91,6 @@ def _init(config: str, setting: str, split: str):
     return env.close
 
 
-def _pointer(path: str) -> MemoryPointer:
-    saved = torch.load(path, weights_only=False)
-    model = MemoryPointer(type_vectors(), **saved["sizes"])
-    model.load_state_dict({k: v.float() if v.is_floating_point() else v
-                           for k, v in saved["state"].items()})  # fmt: skip
-    return model.eval()
-
-
 def _play(job: tuple[int, str, int | None, dict]) -> dict:
     """One episode with the policy in ``path``: drawn choices (``seed``) or the best ones."""
     from maniskill_tidy.eval.episode import play_episode
@@ -101,7 +99,7 @@ def _play(job: tuple[int, str, int | None, dict]) -> dict:
     index, path, seed, r = job
     gamma, bonus, temperature = r["gamma"], r["bonus"], r["temperature"]
     if _worker["path"] != path:
-        _worker.update(path=path, model=_pointer(path))
+        _worker.update(path=path, model=memory_pointer(torch.load(path, weights_only=False)))
     team = memory_team_class(_worker["config"])(sampling_seed=seed, temperature=temperature)
     team.use_pointer(_worker["setting"], _worker["model"])
     reward = TeamReward()
@@ -113,9 +111,9 @@ def _play(job: tuple[int, str, int | None, dict]) -> dict:
     g = returns(reward.placed, record.k, record.success, gamma, bonus)
     rows: dict[str, list] = {k: [] for k in (*INPUTS, "slot", "logp", "ret")}
     for agent in team.made:
-        for t, r, slot, logp in agent.decisions:
+        for t, candidates, slot, logp in agent.decisions:
             for key in INPUTS:
-                rows[key].append(getattr(r, key))
+                rows[key].append(getattr(candidates, key))
             rows["slot"].append(slot)
             rows["logp"].append(logp)
             rows["ret"].append(g[min(t, len(g) - 1)] if len(g) else 0.0)
@@ -148,9 +146,8 @@ def summary(episodes: list[dict]) -> dict:
 
 def _save_policy(model: MemoryPointer, sizes: dict, path: Path) -> None:
     """The weights the agents play: rounded to fp16, as ``checkpoints.save_memory`` ships them."""
-    state = {k: v.half() if v.is_floating_point() else v for k, v in model.state_dict().items()}
     buf = io.BytesIO()
-    torch.save({"sizes": sizes, "state": state}, buf)
+    torch.save({"sizes": sizes, "state": half_state(model)}, buf)
     write_atomic(path, buf.getvalue())
 
 
@@ -226,7 +223,7 @@ def reinforce_pointer(
         p.requires_grad_(True)
     optimisers = (torch.optim.Adam(policy.parameters(), lr=r["lr"]),
                   torch.optim.Adam(critic.parameters(), lr=r["critic_lr"]))  # fmt: skip
-    digest = hash_state(cloned)
+    digest = state_digest([cloned.state_dict()])
     # more rounds continue a run: everything but their number must be the same
     same = {k: v for k, v in r.items() if k != "iterations"}
     key = json.dumps({"reinforce": same, "cloned": digest, "teacher": cfg.teacher,
@@ -258,7 +255,7 @@ def reinforce_pointer(
         if state["best"] is None or point["placed"] > state["best"]["placed"]:
             state["best"] = point
             best_state.clear()
-            best_state.update(_float_state(torch.load(path, weights_only=False)["state"]))
+            best_state.update(float_state(torch.load(path, weights_only=False)["state"]))
 
     def checkpoint() -> None:
         buf = io.BytesIO()
@@ -305,20 +302,6 @@ def reinforce_pointer(
             "seconds": round(state["seconds"], 1), "curve": state["curve"], "val": state["val"],
             "best": state["best"], "cloned_val": state["val"][0]}  # fmt: skip
     return model.eval(), part
-
-
-def _float_state(state: dict) -> dict:
-    return {k: v.float() if v.is_floating_point() else v for k, v in state.items()}
-
-
-def hash_state(model: nn.Module) -> str:
-    import hashlib
-
-    digest = hashlib.sha256()
-    for name, value in sorted(model.state_dict().items()):
-        digest.update(name.encode())
-        digest.update(value.detach().float().numpy().tobytes())
-    return digest.hexdigest()[:16]
 
 
 def plot_reinforce(card: dict, out: Path) -> Path:
