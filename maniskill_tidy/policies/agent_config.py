@@ -211,6 +211,8 @@ class MemoryConfig:
     # after cloning, PPO on the team's return at job boundaries (training/memory_reinforce.py);
     # empty: behaviour cloning only
     reinforce: dict = field(default_factory=dict)
+    # or, after cloning, policy improvement from forked episodes (training/memory_forks.py)
+    forks: dict = field(default_factory=dict)
     notes: str = ""
 
     TEACHERS = ("heuristic-none", "heuristic-detection", "heuristic-broadcast")
@@ -232,6 +234,21 @@ class MemoryConfig:
         "val_episodes": 40,
     }
 
+    FORKS = {
+        "iterations": 6,  # rounds of bases, forks and an update (policy iteration)
+        "episodes": 16,  # train episodes played with the best choices per round (the bases)
+        "forks": 3,  # decisions per base played again with another choice
+        "epochs": 20,  # passes over every pair so far
+        "batch": 64,
+        "lr": 3e-4,
+        "kl": 0.1,  # weight of KL(cloned pointer || pointer) on the round's decisions
+        "temperature": 2.0,  # divides the scores the other choice is drawn from
+        "gamma": 0.99,  # discount per env step
+        "bonus": 1.0,  # team reward for success, beside 1 / k per object put where it belongs
+        "seed": 0,
+        "val_episodes": "standard",  # the clone and the last round, paired (eval's choice)
+    }
+
     @classmethod
     def load(cls, path: Path) -> MemoryConfig:
         path = Path(path)
@@ -248,14 +265,22 @@ class MemoryConfig:
             extra = sorted(set(getattr(cfg, section)) - {"starts", "tasks", "houses"})
             if extra:
                 raise ValueError(f"{path}: unknown {section} keys {extra}")
-        extra = sorted(set(cfg.reinforce) - set(cls.REINFORCE))
-        if extra:
-            raise ValueError(f"{path}: unknown reinforce keys {extra}; expected some of "
-                             f"{sorted(cls.REINFORCE)}")  # fmt: skip
+        for section, known in (("reinforce", cls.REINFORCE), ("forks", cls.FORKS)):
+            extra = sorted(set(getattr(cfg, section)) - set(known))
+            if extra:
+                raise ValueError(f"{path}: unknown {section} keys {extra}; expected some of "
+                                 f"{sorted(known)}")  # fmt: skip
+        if cfg.reinforce and cfg.forks:
+            raise ValueError(f"{path}: both reinforce and forks; expected at most one stage "
+                             "after cloning")  # fmt: skip
         return cfg
 
     def settings(self) -> dict:
         return {"epochs": 30, "batch": 256, "lr": 1e-3, "seed": 0, "patience": 6, **self.train}
+
+    def forks_settings(self) -> dict:
+        """The forks' settings (defaults filled in); empty when the config asks for none."""
+        return {**self.FORKS, **self.forks} if self.forks else {}
 
     def reinforce_settings(self) -> dict:
         """PPO's settings (defaults filled in); empty when the config asks for none."""

@@ -57,6 +57,9 @@ class MemoryAgent(MemoryCandidates, HeuristicAgent):
             agent = public.agents.index(name)
             self.sampler = np.random.default_rng([team.sampling_seed, public.seed, agent])
         self.temperature = team.temperature
+        self.index, self.choices = public.agents.index(name), 0  # this agent's decisions so far
+        self.override = team.override if team.override and team.override[0] == self.index else None
+        self.keep = team.keep_decisions
 
     def _new_job(self, avoid: set[Cell]) -> Job:
         dist = self.planner.distances(self.state.cell, set(self.parked.values()))
@@ -73,11 +76,16 @@ class MemoryAgent(MemoryCandidates, HeuristicAgent):
         p = torch.softmax(logits, 0)
         if self.sampler is None:
             best = int(logits.argmax())
+            if self.override is not None and self.override[1] == self.choices:
+                best = self.override[2]  # a fork: another job at this one decision
+            if self.keep:
+                self.decisions.append((self.t, rows, best))
         else:  # training's rollouts: a choice drawn from the pointer's tempered distribution
             tempered = torch.log_softmax(logits / self.temperature, 0)
             q = tempered.double().exp().numpy()
             best = int(self.sampler.choice(len(q), p=q / q.sum()))
             self.decisions.append((self.t, rows, best, float(tempered[best])))
+        self.choices += 1
         self._choice = {"job": KINDS[int(rows.kind[best])], "p": round(float(p[best]), 3),
                         "candidates": len(cands)}  # fmt: skip
         return self._job_for(cands[best], avoid)
@@ -101,19 +109,25 @@ class MemoryTeam(HeuristicTeam):
     config_file: ClassVar[Path] = DEFAULT_CONFIG
 
     def __init__(
-        self, recording: bool = False, sampling_seed: int | None = None, temperature: float = 1.0
-    ) -> None:
+        self, recording: bool = False, sampling_seed: int | None = None, temperature: float = 1.0,
+        override: tuple[int, int, int] | None = None, keep_decisions: bool = False,
+    ) -> None:  # fmt: skip
         """``recording``: play the teacher's choices and keep every decision's candidates
         (``MemoryAgent.decisions``, of the agents in ``made``): training data.
         ``sampling_seed``: draw each choice from the pointer's distribution instead of taking
         the best, and keep it with its log-probability (the rollouts of
         ``training/memory_reinforce.py``); ``temperature`` divides the scores first (above 1:
-        choices other than the best more often; the best is the same)."""
+        choices other than the best more often; the best is the same).
+        ``override`` ``(agent, n, slot)``: the agent at that index takes candidate ``slot`` at
+        its ``n``-th decision and the best everywhere else (a fork of
+        ``training/memory_forks.py``); ``keep_decisions``: keep every best choice with its
+        candidates, as ``(step, rows, slot)``."""
         from maniskill_tidy.policies.learned import resolve
 
         self.config = MemoryConfig.load(resolve(self.config_file))
         self.recording = recording
         self.sampling_seed, self.temperature = sampling_seed, temperature
+        self.override, self.keep_decisions = override, keep_decisions
         self.made: list[MemoryAgent] = []
         self._loaded: dict = {}
 
@@ -162,7 +176,7 @@ class MemoryTeam(HeuristicTeam):
 
     def make_agent(self, name: str, public: PublicInfo, outbox: Outbox) -> Agent:
         agent = MemoryAgent(name, public, outbox, self)
-        if self.recording or self.sampling_seed is not None:
+        if self.recording or self.sampling_seed is not None or self.keep_decisions:
             self.made.append(agent)
         return agent
 

@@ -91,49 +91,72 @@ def _init(config: str, setting: str, split: str):
     return env.close
 
 
-def _play(job: tuple[int, str, int | None, dict]) -> dict:
-    """One episode with the policy in ``path``: drawn choices (``seed``) or the best ones."""
+def _play(job: tuple[int, str, dict]) -> dict:
+    """One episode with the policy in ``path``; ``mode``: ``seed`` (drawn choices, kept with
+    their returns), else the best choices, with ``override`` (one other choice) and ``keep``
+    (every choice kept) for forks (``training/memory_forks.py``)."""
     from maniskill_tidy.eval.episode import play_episode
     from maniskill_tidy.policies.memory import memory_team_class
 
-    index, path, seed, r = job
-    gamma, bonus, temperature = r["gamma"], r["bonus"], r["temperature"]
+    index, path, mode = job
+    seed = mode.get("seed")
     if _worker["path"] != path:
         _worker.update(path=path, model=memory_pointer(torch.load(path, weights_only=False)))
-    team = memory_team_class(_worker["config"])(sampling_seed=seed, temperature=temperature)
+    override = tuple(mode["override"]) if mode.get("override") else None
+    team = memory_team_class(_worker["config"])(
+        sampling_seed=seed, temperature=mode.get("temperature", 1.0), override=override,
+        keep_decisions=bool(mode.get("keep")),
+    )  # fmt: skip
     team.use_pointer(_worker["setting"], _worker["model"])
     reward = TeamReward()
     record = play_episode(_worker["env"], team, index, index, [reward])
+    g = returns(reward.placed, record.k, record.success, mode["gamma"], mode["bonus"])
     out = {"index": index, "success": record.success, "reasonable": record.reasonable,
-           "k": record.k, "length": record.length}  # fmt: skip
-    if seed is None:
+           "k": record.k, "length": record.length, "return": float(g[0]) if len(g) else 0.0,
+           "override": override}  # fmt: skip
+    if seed is None and not mode.get("keep"):
         return out
-    g = returns(reward.placed, record.k, record.success, gamma, bonus)
-    rows: dict[str, list] = {k: [] for k in (*INPUTS, "slot", "logp", "ret")}
+    rows: dict[str, list] = {k: [] for k in (*INPUTS, "slot", "logp", "ret", "agent", "n")}
     for agent in team.made:
-        for t, candidates, slot, logp in agent.decisions:
+        for n, (t, candidates, slot, *logp) in enumerate(agent.decisions):
             for key in INPUTS:
                 rows[key].append(getattr(candidates, key))
             rows["slot"].append(slot)
-            rows["logp"].append(logp)
+            rows["logp"].append(logp[0] if logp else 0.0)
             rows["ret"].append(g[min(t, len(g) - 1)] if len(g) else 0.0)
+            rows["agent"].append(agent.index)
+            rows["n"].append(n)
     return out | {k: np.asarray(v) for k, v in rows.items()}
+
+
+def play_jobs(
+    cfg: MemoryConfig, config: Path, setting: str, split: str, jobs: list[tuple[int, str, dict]],
+    desc: str, progress: bool,
+) -> list[dict]:  # fmt: skip
+    """``jobs`` (episode index, policy path, mode) in ``cfg.workers`` processes, in order."""
+    from maniskill_tidy.common.parallel import run_jobs
+
+    out: list[tuple[int, dict]] = []
+    with tqdm(total=len(jobs), desc=desc, unit="episode", disable=not progress, leave=False) as bar:
+        for i, result in run_jobs(list(enumerate(jobs)), _play_numbered, cfg.workers, init=_init,
+                                  initargs=(str(config), setting, split)):  # fmt: skip
+            out.append((i, result))
+            bar.update(1)
+    return [result for _, result in sorted(out, key=lambda x: x[0])]
+
+
+def _play_numbered(job: tuple[int, tuple]) -> dict:
+    return _play(job[1])
 
 
 def _play_all(
     cfg: MemoryConfig, config: Path, setting: str, split: str, indices: list[int], path: Path,
     seed: int | None, r: dict, desc: str, progress: bool,
 ) -> list[dict]:  # fmt: skip
-    from maniskill_tidy.common.parallel import run_jobs
-
-    jobs = [(i, str(path), seed, r) for i in indices]
-    out = []
-    with tqdm(total=len(jobs), desc=desc, unit="episode", disable=not progress, leave=False) as bar:
-        for _, result in run_jobs(jobs, _play, cfg.workers, init=_init,
-                                  initargs=(str(config), setting, split)):  # fmt: skip
-            out.append(result)
-            bar.update(1)
-    return sorted(out, key=lambda e: e["index"])
+    mode = {"seed": seed, "temperature": r["temperature"], "gamma": r["gamma"],
+            "bonus": r["bonus"]}  # fmt: skip
+    jobs = [(i, str(path), mode) for i in sorted(indices)]
+    return play_jobs(cfg, config, setting, split, jobs, desc, progress)
 
 
 def summary(episodes: list[dict]) -> dict:

@@ -140,6 +140,11 @@ def train_memory(config: Path, setting: str, progress: bool = True) -> dict:
         from maniskill_tidy.training.memory_reinforce import reinforce_pointer
 
         model, reinforced = reinforce_pointer(cfg, config, setting, model, sizes, progress)
+    forked = {}
+    if cfg.forks:
+        from maniskill_tidy.training.memory_forks import improve_pointer
+
+        model, forked = improve_pointer(cfg, config, setting, model, sizes, progress)
     folder = Path(cfg.out) / f"setting_{setting}"
     save_memory(model, folder, sizes, {"name": cfg.name, "teacher": cfg.teacher})
     card = {
@@ -151,6 +156,8 @@ def train_memory(config: Path, setting: str, progress: bool = True) -> dict:
     }  # fmt: skip
     if reinforced:
         card["reinforce"] = reinforced
+    if forked:
+        card["forks"] = forked
     # the card's hash first: the closed-loop runs below load the weights through it
     write_atomic(folder / "card.json", json.dumps(card, indent=1).encode())
     card["closed_loop"] = closed_loop(cfg, config, setting, progress)
@@ -164,6 +171,10 @@ def train_memory(config: Path, setting: str, progress: bool = True) -> dict:
         from maniskill_tidy.training.memory_reinforce import plot_reinforce
 
         plot_reinforce(card, folder / "reinforce.png")
+    if forked:
+        from maniskill_tidy.training.memory_forks import plot_forks
+
+        plot_forks(card, folder / "forks.png")
     return card
 
 
@@ -223,6 +234,19 @@ def memory_card(card: dict) -> str:
             f"{cloned['placed']:.3f} of the objects where they belong (Success "
             f"{cloned['success']:.3f}); kept: round {best['round']}, {best['placed']:.3f} "
             f"(Success {best['success']:.3f}). ![PPO](reinforce.png)"
+        )
+    if "forks" in card:
+        fk, s = card["forks"], card["forks"]["settings"]
+        gain = fk["val_gain"]["placed"]
+        lines.append(
+            f"- then policy improvement from forked episodes: {fk['rounds']} rounds of "
+            f"{s['episodes']} train episodes with the best choices and {s['forks']} forks each "
+            f"({fk['pairs']} pairs, {fk['seconds']:.0f} s), KL weight {s['kl']} towards the "
+            f"cloned pointer; on {fk['val_gain']['episodes']} val episodes the last round put "
+            f"{fk['val']['last']['placed']:.3f} of the objects where they belong against the "
+            f"clone's {fk['val']['cloned']['placed']:.3f} (paired {gain['difference']:+.4f}, "
+            f"95 % interval [{gain['ci95'][0]:+.4f}, {gain['ci95'][1]:+.4f}]); kept: the "
+            f"{fk['kept']} pointer. ![forks](forks.png)"
         )
     for who, m in card.get("closed_loop", {}).items():
         lines.append(
