@@ -49,16 +49,17 @@ class MemoryAgent(MemoryCandidates, HeuristicAgent):
     def __init__(self, name: str, public: PublicInfo, outbox: Outbox, team: MemoryTeam) -> None:
         super().__init__(name, public, outbox, team.communication)
         self.pointer = None if team.recording else team.pointer(public.capabilities)
-        # teacher mode: (step, rows, the teacher's slot); sampling: (step, rows, slot, log p)
+        # teacher mode: (step, rows, the teacher's slot); sampling: (step, rows, slot, log p);
+        # keeping the best choices (forks' bases): (step, rows, slot)
         self.decisions: list[tuple] = []
         self._choice: dict = {}
+        self.index, self.choices = public.agents.index(name), 0  # this agent's decisions so far
         self.sampler = None  # the heuristic's own ``rng`` breaks its ties, as the teacher's
         if team.sampling_seed is not None:  # one stream per run seed, episode and agent
-            agent = public.agents.index(name)
-            self.sampler = np.random.default_rng([team.sampling_seed, public.seed, agent])
+            self.sampler = np.random.default_rng([team.sampling_seed, public.seed, self.index])
         self.temperature = team.temperature
-        self.index, self.choices = public.agents.index(name), 0  # this agent's decisions so far
-        self.override = team.override if team.override and team.override[0] == self.index else None
+        mine = team.override is not None and team.override[0] == self.index
+        self.override = team.override if mine else None  # (agent, n, slot): one other choice
         self.keep = team.keep_decisions
 
     def _new_job(self, avoid: set[Cell]) -> Job:
