@@ -29,7 +29,12 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("run", type=Path, help="a forks run's folder (data/memory/setting_S/forks_NAME)")
     p.add_argument("--pointer", type=Path, help="the cloned pointer's folder (agents/NAME/...)")
-    p.add_argument("--held-out", type=int, default=12, help="base episodes held out (last)")
+    p.add_argument(
+        "--held-out",
+        type=int,
+        default=12,
+        help="base episodes held out, the last (a round, if every base was forked)",
+    )
     p.add_argument("--epochs", type=int, default=60)
     args = p.parse_args()
     ckpt = args.run / "state.pt"
@@ -67,8 +72,8 @@ def held_out(pairs: list[dict], folder: Path, n: int, epochs: int) -> None:
     cloned = load_memory(folder)[0].eval()
     train, test = _stack(pairs[:-n]), _stack(pairs[-n:])
     fitted = copy.deepcopy(cloned).train()
-    f = {**MemoryConfig.FORKS, "kl": 0.0, "epochs": epochs}
-    stats = preference_update(fitted, cloned, torch.optim.Adam(fitted.parameters(), lr=1e-3),
+    f = {**MemoryConfig.FORKS, "kl": 0.0, "epochs": epochs, "lr": 1e-3}
+    stats = preference_update(fitted, cloned, torch.optim.Adam(fitted.parameters(), lr=f["lr"]),
                               train, [train[k] for k in INPUTS], f,
                               torch.Generator().manual_seed(0))  # fmt: skip
     informative = test["gain"] != 0

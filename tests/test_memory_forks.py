@@ -132,13 +132,18 @@ def test_a_fork_with_the_best_choice_replays_its_base(small_dataset, tmp_path):
     assert len(base["slot"]) > 5 and set(base["agent"].tolist()) == {0, 1, 2}
     (agent, n, other), *_ = choose_forks(pointer, base, 1, 2.0, np.random.default_rng(0))
     row = int(np.flatnonzero((base["agent"] == agent) & (base["n"] == n))[0])
+    keep = {**mode, "keep": True}
     same, fork = play_jobs(cfg, config, "I", "train",
-                           [(0, str(policy), {**mode, "override": (agent, n, base["slot"][row])}),
-                            (0, str(policy), {**mode, "override": (agent, n, other)})],
+                           [(0, str(policy), {**keep, "override": (agent, n, base["slot"][row])}),
+                            (0, str(policy), {**keep, "override": (agent, n, other)})],
                            "", False)  # fmt: skip
-    keys = ("return", "success", "reasonable", "length")
-    assert [same[k] for k in keys] == [base[k] for k in keys]
-    assert fork["override"] == (agent, n, other)
+    keys = ("return", "success", "reasonable", "length", "slot", "agent", "n")
+    assert all(np.array_equal(same[k], base[k]) for k in keys)
+    # the fork is its base up to that decision, where the agent took the other candidate
+    at = int(np.flatnonzero((fork["agent"] == agent) & (fork["n"] == n))[0])
+    assert at == row and fork["slot"][at] == other != base["slot"][row]
+    assert np.array_equal(fork["slot"][:row], base["slot"][:row])
+    assert all(np.array_equal(fork[k][:row], base[k][:row]) for k in INPUTS)
 
 
 def test_forks_fine_tune_the_clone_and_a_rerun_resumes(small_dataset, tmp_path, monkeypatch):
@@ -162,14 +167,30 @@ def test_forks_fine_tune_the_clone_and_a_rerun_resumes(small_dataset, tmp_path, 
     def nothing_to_play(*args, **kwargs):
         raise AssertionError("a finished run played again")
 
+    play_jobs = memory_forks.play_jobs
     monkeypatch.setattr(memory_forks, "play_jobs", nothing_to_play)
     again = train_memory(cfg, "I", progress=False)["forks"]
     assert again["curve"] == part["curve"] and again["val_gain"] == part["val_gain"]
     resumed = torch.load(folder / "model.pt", weights_only=False)["state"]
     assert all(torch.equal(weights[k], resumed[k]) for k in weights)
 
+    # one more round continues the run, and its last round is judged on val again
+    played: list[str] = []
 
-def test_a_config_with_two_stages_after_cloning_is_refused(small_dataset, tmp_path):
+    def counted(*args):
+        played.append(args[5])  # the progress bar's label
+        return play_jobs(*args)
+
+    monkeypatch.setattr(memory_forks, "play_jobs", counted)
+    more = cfg.read_text().replace("iterations: 1", "iterations: 2")
+    cfg.write_text(more)
+    longer = train_memory(cfg, "I", progress=False)["forks"]
+    assert longer["rounds"] == 2 and longer["curve"][0] == part["curve"][0]
+    assert played[0] == "bases, round 1" and "val, last" in played
+    assert "val, cloned" not in played  # the clone's val run is kept
+
+
+def test_a_forks_config_with_unknown_keys_or_two_later_stages_is_refused(small_dataset, tmp_path):
     with pytest.raises(ValueError, match="unknown forks keys \\['rounds'\\]; expected some of"):
         MemoryConfig.load(memory_config(tmp_path, small_dataset, forks="{rounds: 3}"))
     with pytest.raises(ValueError, match="both reinforce and forks; expected at most one"):

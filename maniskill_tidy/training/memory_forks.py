@@ -6,8 +6,10 @@ clone on test. Here the credit is exact for one episode. The env and the team ar
 (same seed, same pixels), so an episode played again with the pointer's best choice everywhere
 but one decision, where the agent takes another candidate, differs from the first play only by
 that choice and what followed from it. The difference of the two plays' discounted team returns
-is that choice's advantage over the pointer's best, at that state, under the pointer's own
-later choices: a rollout in the sense of Bertsekas's rollout algorithms, with no sampling noise.
+(from the episode's start) is that choice's advantage over the pointer's best at that state,
+under the pointer's own later choices, times ``gamma ** t`` for a decision at step t: a rollout
+in the sense of Bertsekas's rollout algorithms, with no sampling noise. The sign is what the
+pointer learns; the weight it gets leans towards early decisions (0.99 ** 300 is about 0.05).
 
 Each round plays ``episodes`` train episodes with the best choices (the bases), picks ``forks``
 decisions in each (with at least two candidates) and, for each, another candidate drawn from the
@@ -50,6 +52,8 @@ def choose_forks(
 ) -> list[tuple[int, int, int]]:
     """Up to ``k`` overrides ``(agent, n, slot)`` for one base episode: decisions with at least
     two candidates, each with another candidate drawn from the tempered scores."""
+    if not len(base["slot"]):  # no decision in this episode
+        return []
     present = base["kind"] >= 0
     eligible = np.flatnonzero(present.sum(1) >= 2)
     if not len(eligible):
@@ -70,7 +74,8 @@ def choose_forks(
 
 
 def pairs_of(base: dict, forks: list[dict]) -> dict[str, np.ndarray]:
-    """The decisions forked in ``base``, each with its two choices and the other's gain."""
+    """The decisions forked in ``base``, each with its two choices (``best``: the base's, the
+    best of the pointer that played it) and the other's gain in the team's return."""
     where = {(int(a), int(n)): i for i, (a, n) in enumerate(zip(base["agent"], base["n"],
                                                                strict=True))}  # fmt: skip
     rows = [where[f["override"][:2]] for f in forks]
@@ -109,10 +114,12 @@ def preference_update(
             pref = nn.functional.binary_cross_entropy_with_logits(
                 margin, target[idx], weight=weight[idx]
             )
-            logp = torch.log_softmax(policy(*(x[kidx] for x in decisions)) / temperature, -1)
-            mask = present[kidx]
-            p = cloned_logp[kidx].exp().masked_fill(~mask, 0)
-            kl = (p * (cloned_logp[kidx] - logp).masked_fill(~mask, 0)).sum(-1).mean()
+            kl = margin.new_zeros(())
+            if len(kidx):  # fewer decisions than batches leaves some batches none
+                logp = torch.log_softmax(policy(*(x[kidx] for x in decisions)) / temperature, -1)
+                mask = present[kidx]
+                p = cloned_logp[kidx].exp().masked_fill(~mask, 0)
+                kl = (p * (cloned_logp[kidx] - logp).masked_fill(~mask, 0)).sum(-1).mean()
             loss = pref + f["kl"] * kl
             optimiser.zero_grad()
             loss.backward()
@@ -185,7 +192,7 @@ def improve_pointer(
     key = json.dumps({"forks": same, "cloned": digest, "teacher": cfg.teacher, "env": cfg.env,
                       "dataset": cfg.dataset})  # fmt: skip
     ckpt = work / "state.pt"
-    state: dict = {"round": 0, "curve": [], "seconds": 0.0, "val": {}}
+    state: dict = {"round": 0, "curve": [], "seconds": 0.0, "val": {}, "val_seconds": 0.0}
     pairs: list[dict] = []
     if ckpt.is_file():
         saved = torch.load(ckpt, weights_only=False)
@@ -193,6 +200,8 @@ def improve_pointer(
             policy.load_state_dict(saved["policy"])
             optimiser.load_state_dict(saved["optimiser"])
             state, pairs = saved["state"], saved["pairs"]
+        elif progress:
+            tqdm.write(f"{ckpt}: another config's rounds; starting over")
     if state["round"] > f["iterations"]:
         raise ValueError(
             f"{work} holds {state['round']} rounds of forks, more than the config's "
@@ -212,6 +221,7 @@ def improve_pointer(
         while state["round"] < f["iterations"]:
             n = state["round"]
             started = time.perf_counter()
+            state["val"].pop("last", None)  # more rounds: a new last round to judge
             path = str(work / f"policy_{n:03d}.pt")
             _save_policy(policy, sizes, Path(path))
             rng = np.random.default_rng([f["seed"], n])
@@ -229,10 +239,13 @@ def improve_pointer(
                    for b, base in enumerate(bases) if b in owner]  # fmt: skip
             pairs.extend(new)
             gains = np.concatenate([p["gain"] for p in new]) if new else np.zeros(0)
-            decisions = _stack([{k: b[k] for k in INPUTS} for b in bases if len(b["slot"])])
             generator = torch.Generator().manual_seed(f["seed"] * 1000 + n)
-            stats = preference_update(policy, cloned, optimiser, _stack(pairs),
-                                      [decisions[k] for k in INPUTS], f, generator)  # fmt: skip
+            played = [{k: b[k] for k in INPUTS} for b in bases if len(b["slot"])]
+            stats = {"pairs": 0}
+            if pairs and played:
+                decisions = _stack(played)
+                stats = preference_update(policy, cloned, optimiser, _stack(pairs),
+                                          [decisions[k] for k in INPUTS], f, generator)  # fmt: skip
             state["round"] += 1
             state["seconds"] += time.perf_counter() - started
             state["curve"].append({
@@ -245,17 +258,18 @@ def improve_pointer(
             bar.set_postfix(better=f"{state['curve'][-1]['fork_better']}/{len(forks)}")
 
     # selection: the clone against the last round, paired over the val protocol
-    final = work / f"policy_{f['iterations']:03d}.pt"
-    if not final.is_file():
-        _save_policy(policy, sizes, final)
-    clone_path = work / "policy_000.pt"
+    final, clone_path = work / f"policy_{f['iterations']:03d}.pt", work / "policy_000.pt"
+    _save_policy(policy, sizes, final)  # never a file an older run left
+    _save_policy(cloned, sizes, clone_path)
     for who, path in (("cloned", clone_path), ("last", final)):
         if who not in state["val"]:
+            started = time.perf_counter()
             played = play_jobs(cfg, config, setting, "val",
                                [(i, str(path), returns) for i in val_indices],
                                f"val, {who}", progress)  # fmt: skip
             state["val"][who] = [{k: e[k] for k in ("index", "success", "reasonable", "k")}
                                  for e in played]  # fmt: skip
+            state["val_seconds"] = state.get("val_seconds", 0.0) + time.perf_counter() - started
             checkpoint()
     gain = paired_gain(state["val"]["last"], state["val"]["cloned"])
     kept = "last" if gain["placed"]["ci95"][0] > 0 else "cloned"
@@ -264,7 +278,8 @@ def improve_pointer(
                                                  weights_only=False)["state"]))  # fmt: skip
     part = {"settings": f, "cloned_weights": digest, "rounds": state["round"],
             "seconds": round(state["seconds"], 1), "curve": state["curve"],
-            "pairs": int(sum(len(p["gain"]) for p in pairs)),
+            "val_seconds": round(state.get("val_seconds", 0.0), 1),
+            "forks_played": int(sum(len(p["gain"]) for p in pairs)),
             "val": {who: summary(v) for who, v in state["val"].items()},
             "val_gain": gain, "kept": kept}  # fmt: skip
     return model.eval(), part

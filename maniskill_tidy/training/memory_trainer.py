@@ -242,8 +242,10 @@ def memory_card(card: dict) -> str:
         lines.append(
             f"- then policy improvement from forked episodes: {fk['rounds']} rounds of "
             f"{s['episodes']} train episodes with the best choices and {s['forks']} forks each "
-            f"({fk['pairs']} forks, {changed} of which changed the team's return; "
-            f"{fk['seconds']:.0f} s), KL weight {s['kl']} towards the "
+            f"({fk['forks_played']} forks, {changed} of which changed the team's return; "
+            f"{fk['seconds']:.0f} s"
+            + (f", then {fk['val_seconds']:.0f} s of val" if fk.get("val_seconds") else "")
+            + f"), KL weight {s['kl']} towards the "
             f"cloned pointer; on {fk['val_gain']['episodes']} val episodes the last round put "
             f"{fk['val']['last']['placed']:.3f} of the objects where they belong against the "
             f"clone's {fk['val']['cloned']['placed']:.3f} (paired {gain['difference']:+.4f}, "
