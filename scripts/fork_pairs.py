@@ -41,20 +41,27 @@ def main() -> None:
     if not ckpt.is_file():
         p.error(f"{ckpt} not found; expected the folder of a forks run")
     pairs = torch.load(ckpt, weights_only=False)["pairs"]
-    table: dict[tuple[str, str], list[float]] = defaultdict(list)
+    table: dict[tuple[str, str], list[tuple[float, float]]] = defaultdict(list)
     for part in pairs:
         rows = np.arange(len(part["gain"]))
         best = part["kind"][rows, part["best"]]
         other = part["kind"][rows, part["other"]]
-        for b, o, g in zip(best, other, part["gain"], strict=True):
-            table[(KINDS[int(b)], KINDS[int(o)])].append(float(g))
+        # runs before 2026-11-29's review kept only the discounted gain
+        at_end = part.get("placed_gain", np.full(len(rows), np.nan))
+        for b, o, g, e in zip(best, other, part["gain"], at_end, strict=True):
+            table[(KINDS[int(b)], KINDS[int(o)])].append((float(g), float(e)))
     total = sum(len(v) for v in table.values())
-    print(f"{total} forks in {len(pairs)} base episodes")
-    print(f"{'best':>8} -> {'other':<8} {'forks':>6} {'better':>7} {'worse':>6} {'mean gain':>10}")
-    for (b, o), gains in sorted(table.items(), key=lambda kv: -len(kv[1])):
-        g = np.array(gains)
+    print(
+        f"{total} forks in {len(pairs)} base episodes; the discounted team return, then the "
+        "share placed at the end (undiscounted, what the metrics see; n/a in older runs)"
+    )
+    print(f"{'best':>8} -> {'other':<8} {'forks':>6} {'better':>7} {'worse':>6} {'mean gain':>10}"
+          f" {'end better':>11} {'end worse':>10}")  # fmt: skip
+    for (b, o), both in sorted(table.items(), key=lambda kv: -len(kv[1])):
+        g, e = np.array(both).T
+        end = "n/a" if np.isnan(e).all() else f"{(e > 0).sum():>11} {(e < 0).sum():>10}"
         print(f"{b:>8} -> {o:<8} {len(g):>6} {(g > 0).sum():>7} {(g < 0).sum():>6} "
-              f"{g.mean():>+10.4f}")  # fmt: skip
+              f"{g.mean():>+10.4f} {end:>11}")  # fmt: skip
     if args.pointer is not None:
         held_out(pairs, args.pointer, args.held_out, args.epochs)
 

@@ -77,7 +77,7 @@ def test_forks_choose_another_present_candidate_at_decisions_with_a_choice():
     base["kind"][0] = [5, -1, -1, -1]  # only parking: nothing to fork
     base["slot"] = np.array([0, 1, 1, 0, 2, 1])
     base["agent"], base["n"] = np.array([0, 0, 1, 1, 2, 2]), np.array([0, 1, 0, 1, 0, 1])
-    base["return"] = 0.5
+    base["return"], base["reasonable"], base["k"], base["success"] = 0.5, 1, 2, False
     rng = np.random.default_rng(0)
     seen = set()
     for _ in range(30):
@@ -86,10 +86,16 @@ def test_forks_choose_another_present_candidate_at_decisions_with_a_choice():
             assert row != 0 and slot != base["slot"][row] and base["kind"][row, slot] >= 0
             seen.add(row)
     assert seen == {1, 2, 3, 4, 5}
-    forks = [{"override": (1, 0, 0), "return": 0.75}, {"override": (2, 1, 2), "return": 0.25}]
+    forks = [
+        {"override": (1, 0, 0), "return": 0.75, "reasonable": 2, "success": True},
+        {"override": (2, 1, 2), "return": 0.25, "reasonable": 1, "success": False},
+    ]
     pairs = pairs_of(base, forks)
     assert pairs["best"].tolist() == [1, 1] and pairs["other"].tolist() == [0, 2]
     assert pairs["gain"].tolist() == [0.25, -0.25]
+    # the second fork placed as many objects, only later: worse discounted, equal at the end
+    assert pairs["placed_gain"].tolist() == [0.5, 0.0]
+    assert pairs["success_gain"].tolist() == [1, 0]
     assert np.array_equal(pairs["numeric"], base["numeric"][[2, 5]])
 
 

@@ -83,6 +83,10 @@ def pairs_of(base: dict, forks: list[dict]) -> dict[str, np.ndarray]:
     out["best"] = base["slot"][rows]
     out["other"] = np.array([f["override"][2] for f in forks], np.int64)
     out["gain"] = np.array([f["return"] - base["return"] for f in forks], np.float64)
+    # what the benchmark's metrics see at the episode's end, undiscounted (analysis only)
+    out["placed_gain"] = np.array([(f["reasonable"] - base["reasonable"]) / max(base["k"], 1)
+                                   for f in forks], np.float64)  # fmt: skip
+    out["success_gain"] = np.array([int(f["success"]) - int(base["success"]) for f in forks])
     return out
 
 
