@@ -27,9 +27,7 @@ checkpoint with every pair so far, and a rerun resumes from it.
 
 from __future__ import annotations
 
-import copy
 import io
-import json
 import time
 from pathlib import Path
 
@@ -39,10 +37,16 @@ from torch import nn
 from tqdm import tqdm
 
 from maniskill_tidy.common.files import write_atomic
-from maniskill_tidy.models.checkpoints import float_state, state_digest, type_vectors
+from maniskill_tidy.models.checkpoints import float_state, type_vectors
 from maniskill_tidy.models.memory_pointer import MemoryPointer
 from maniskill_tidy.policies.agent_config import MemoryConfig
-from maniskill_tidy.training.memory_reinforce import INPUTS, _save_policy, play_jobs, summary
+from maniskill_tidy.training.memory_reinforce import (
+    INPUTS,
+    _save_policy,
+    play_jobs,
+    start_stage,
+    summary,
+)
 
 PAIR_KEYS = (*INPUTS, "best", "other", "gain")
 
@@ -175,26 +179,11 @@ def improve_pointer(
 ) -> tuple[MemoryPointer, dict]:  # fmt: skip
     """Improve ``cloned`` from forked episodes (see the top); returns the kept weights and the
     card's part."""
-    from maniskill_tidy.envs.episodes import EpisodeSet
-    from maniskill_tidy.eval.runner import select
-
     f = cfg.forks_settings()
-    work = Path(cfg.work) / f"setting_{setting}" / f"forks_{cfg.name}"
-    work.mkdir(parents=True, exist_ok=True)
-    train_n = len(EpisodeSet.for_setting(cfg.dataset, "train", setting).episodes)
-    val = EpisodeSet.for_setting(cfg.dataset, "val", setting).episodes
-    val_indices = select([e.start for e in val], f["val_episodes"])  # as eval chooses them
-    cloned = copy.deepcopy(cloned).eval()
-    for p in cloned.parameters():
-        p.requires_grad_(False)
-    policy = copy.deepcopy(cloned).train()
-    for p in policy.parameters():
-        p.requires_grad_(True)
+    stage = start_stage(cfg, setting, "forks", f, cloned)
+    work, train_n, val_indices = stage.work, stage.train_n, stage.val_indices
+    cloned, policy, digest, key = stage.cloned, stage.policy, stage.digest, stage.key
     optimiser = torch.optim.Adam(policy.parameters(), lr=f["lr"])
-    digest = state_digest([cloned.state_dict()])
-    same = {k: v for k, v in f.items() if k != "iterations"}  # more rounds continue a run
-    key = json.dumps({"forks": same, "cloned": digest, "teacher": cfg.teacher, "env": cfg.env,
-                      "dataset": cfg.dataset})  # fmt: skip
     ckpt = work / "state.pt"
     state: dict = {"round": 0, "curve": [], "seconds": 0.0, "val": {}, "val_seconds": 0.0}
     pairs: list[dict] = []

@@ -24,6 +24,7 @@ import copy
 import io
 import json
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -224,33 +225,57 @@ def _stack(episodes: list[dict]) -> dict[str, torch.Tensor]:
     return out
 
 
+@dataclass
+class Stage:
+    """What a stage after cloning starts from (``start_stage``)."""
+
+    work: Path  # data/memory/setting_S/SECTION_NAME: its checkpoints
+    train_n: int  # train episodes of the setting
+    val_indices: list[int]  # the val episodes it plays, as eval chooses them
+    cloned: MemoryPointer  # frozen
+    policy: MemoryPointer  # a trainable copy
+    digest: str  # the cloned weights' fingerprint
+    key: str  # what a checkpoint must match to be resumed
+
+
+def start_stage(
+    cfg: MemoryConfig, setting: str, section: str, settings: dict, cloned: MemoryPointer
+) -> Stage:
+    """The set-up PPO and the forks share; more ``iterations`` continue a run, so they are
+    left out of the key."""
+    from maniskill_tidy.envs.episodes import EpisodeSet
+    from maniskill_tidy.eval.runner import select
+
+    work = Path(cfg.work) / f"setting_{setting}" / f"{section}_{cfg.name}"
+    work.mkdir(parents=True, exist_ok=True)
+    train_n = len(EpisodeSet.for_setting(cfg.dataset, "train", setting).episodes)
+    val = EpisodeSet.for_setting(cfg.dataset, "val", setting).episodes
+    val_indices = select([e.start for e in val], settings["val_episodes"])
+    cloned = copy.deepcopy(cloned).eval()
+    for p in cloned.parameters():
+        p.requires_grad_(False)
+    policy = copy.deepcopy(cloned).train()
+    for p in policy.parameters():
+        p.requires_grad_(True)
+    digest = state_digest([cloned.state_dict()])
+    same = {k: v for k, v in settings.items() if k != "iterations"}
+    key = json.dumps({section: same, "cloned": digest, "teacher": cfg.teacher,
+                      "env": cfg.env, "dataset": cfg.dataset})  # fmt: skip
+    return Stage(work, train_n, val_indices, cloned, policy, digest, key)
+
+
 def reinforce_pointer(
     cfg: MemoryConfig, config: Path, setting: str, cloned: MemoryPointer, sizes: dict,
     progress: bool = True,
 ) -> tuple[MemoryPointer, dict]:  # fmt: skip
     """Fine-tune ``cloned`` (see the top); returns the selected weights and the card's part."""
-    from maniskill_tidy.envs.episodes import EpisodeSet
-    from maniskill_tidy.eval.runner import select
-
     r = cfg.reinforce_settings()
-    work = Path(cfg.work) / f"setting_{setting}" / f"reinforce_{cfg.name}"
-    work.mkdir(parents=True, exist_ok=True)
-    train_n = len(EpisodeSet.for_setting(cfg.dataset, "train", setting).episodes)
-    val = EpisodeSet.for_setting(cfg.dataset, "val", setting).episodes
-    val_indices = select([e.start for e in val], r["val_episodes"])  # as eval chooses them
-    cloned = copy.deepcopy(cloned).eval()
-    for p in cloned.parameters():
-        p.requires_grad_(False)
-    policy, critic = copy.deepcopy(cloned).train(), Critic(cloned)
-    for p in policy.parameters():
-        p.requires_grad_(True)
+    stage = start_stage(cfg, setting, "reinforce", r, cloned)
+    work, train_n, val_indices = stage.work, stage.train_n, stage.val_indices
+    cloned, policy, digest, key = stage.cloned, stage.policy, stage.digest, stage.key
+    critic = Critic(cloned)
     optimisers = (torch.optim.Adam(policy.parameters(), lr=r["lr"]),
                   torch.optim.Adam(critic.parameters(), lr=r["critic_lr"]))  # fmt: skip
-    digest = state_digest([cloned.state_dict()])
-    # more rounds continue a run: everything but their number must be the same
-    same = {k: v for k, v in r.items() if k != "iterations"}
-    key = json.dumps({"reinforce": same, "cloned": digest, "teacher": cfg.teacher,
-                      "env": cfg.env, "dataset": cfg.dataset})  # fmt: skip
     ckpt = work / "state.pt"
     state = {"round": 0, "curve": [], "val": [], "best": None, "seconds": 0.0}
     best_state = copy.deepcopy(cloned.state_dict())
