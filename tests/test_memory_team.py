@@ -47,6 +47,58 @@ def test_recording_plays_as_the_teacher_and_every_choice_is_a_candidate(small_da
     assert {"fetch", "place"} <= kinds  # it tidied something, so it chose both
 
 
+def test_explore_candidates_in_other_rooms_leave_the_teacher_and_its_choice_alone(
+    small_dataset, tmp_path, monkeypatch
+):
+    from maniskill_tidy.eval.runner import RunConfig, make_env, run_episode
+    from maniskill_tidy.policies import make_team
+    from maniskill_tidy.policies.memory import memory_team_class
+    from maniskill_tidy.policies.memory_candidates import (
+        KINDS,
+        NUMERIC,
+        ROOM_NUMERIC,
+        MemoryCandidates,
+        slots,
+    )
+
+    def kept(agent, avoid, dist):  # the cells, with the heuristic's own choice beside them
+        cells = explore_cells(agent, avoid, dist)
+        agent.seen.append((cells, agent._search_target(avoid, dist)))
+        return cells
+
+    explore_cells = MemoryCandidates._explore_cells
+    monkeypatch.setattr(MemoryCandidates, "_explore_cells", kept)
+    monkeypatch.setattr(MemoryCandidates, "seen", [], raising=False)
+    config = memory_config(tmp_path, small_dataset, explore=3)
+    recording = memory_team_class(config)(recording=True)
+    env = make_env(RunConfig("heuristic-detection", "I", "train", str(small_dataset)))
+    starts = [e.id for e in env.unwrapped.episodes.episodes]
+    i = starts.index("house_00004/task_0/start_0")  # six rooms
+    try:
+        teacher = run_episode(env, make_team("heuristic-detection"), i, i).to_dict()
+        recorded = run_episode(env, recording, i, i).to_dict()
+    finally:
+        env.close()
+    teacher.pop("seconds"), recorded.pop("seconds")
+    assert recorded == teacher
+    rooms = recording.made[0]._rooms()
+    assert len(set(rooms[rooms >= 0].tolist())) == 6
+    for cells, heuristics in MemoryCandidates.seen:
+        assert cells[:1] == ([heuristics] if heuristics else [])  # its own cell first
+        assert len({int(rooms[c]) for c in cells}) == len(cells) <= 3  # one per room
+    explore = KINDS.index("explore")
+    for agent in recording.made:
+        for _, rows, slot in agent.decisions:
+            assert rows.kind.shape == (slots(3),)
+            assert rows.numeric.shape == (slots(3), len(NUMERIC) + len(ROOM_NUMERIC))
+            at = [i for i in range(len(rows.kind)) if rows.kind[i] == explore]
+            if rows.kind[slot] == explore:
+                assert slot == at[0]  # the teacher took the heuristic's cell
+            unsearched = rows.numeric[at, len(NUMERIC)]
+            assert ((0 < unsearched) & (unsearched <= 1)).all()  # each has a cell to search
+    assert max(len(cells) for cells, _ in MemoryCandidates.seen) == 3
+
+
 def test_the_pointer_ignores_padding_and_never_points_at_it():
     from maniskill_tidy.models.checkpoints import type_vectors
     from maniskill_tidy.models.memory_pointer import MemoryPointer
@@ -102,6 +154,9 @@ def test_a_bad_memory_config_is_refused_in_one_line(tmp_path, small_dataset):
         MemoryConfig.load(memory_config(tmp_path, small_dataset, model="{width: 3}"))
     with pytest.raises(ValueError, match="unknown reinforce keys \\['steps'\\]; expected some of"):
         MemoryConfig.load(memory_config(tmp_path, small_dataset, reinforce="{steps: 3}"))
+    for explore in (0, 7, 2.5):
+        with pytest.raises(ValueError, match=f"explore {explore}; expected a whole number from 1"):
+            MemoryConfig.load(memory_config(tmp_path, small_dataset, explore=explore))
     untrained = team_class(str(memory_config(tmp_path, small_dataset, "untrained")))
     why = untrained.missing_model(((1, 0, 0), (1, 0, 1), (1, 1, 1)))
     assert "not found; train it with `maniskill-tidy train" in why

@@ -88,6 +88,17 @@ class GridFrame:
         )
 
 
+def room_index(house: House) -> np.ndarray:
+    """(rows, cols) int: the index in ``house.rooms`` of the room each navigation cell's centre
+    lies in, -1 outside every room (a free cell lies in exactly one)."""
+    grid = house.navgrid
+    frame = GridFrame(tuple(grid.origin), tuple(grid.shape))
+    index = np.full(frame.shape, -1, np.int64)
+    for i, room in enumerate(house.rooms):
+        index[frame.room_mask(room) & (index < 0)] = i
+    return index
+
+
 def _axis_aligned(poly: list[list[float]]) -> bool:
     return all(
         abs(p[0] - q[0]) < 1e-9 or abs(p[1] - q[1]) < 1e-9

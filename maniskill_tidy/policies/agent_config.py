@@ -208,6 +208,10 @@ class MemoryConfig:
     model: dict = field(default_factory=lambda: {"dim": 64, "heads": 4})
     train: dict = field(default_factory=dict)  # epochs, batch, lr, seed, patience
     val_episodes: int = 20  # closed-loop val episodes for the card, the student's and teacher's
+    # explore candidates per decision: the heuristic's cell to search, and above 1 the first
+    # unsearched cell of up to explore - 1 other rooms, with two numbers about each room
+    # (policies/memory_candidates.py): where to search becomes the pointer's choice
+    explore: int = 1
     # after cloning, PPO on the team's return at job boundaries (training/memory_reinforce.py);
     # empty: behaviour cloning only
     reinforce: dict = field(default_factory=dict)
@@ -216,6 +220,7 @@ class MemoryConfig:
     notes: str = ""
 
     TEACHERS = ("heuristic-none", "heuristic-detection", "heuristic-broadcast")
+    MAX_EXPLORE = 6
     TRAIN_KEYS = ("epochs", "batch", "lr", "seed", "patience")
     REINFORCE = {
         "iterations": 24,  # rounds of rollouts and updates
@@ -273,6 +278,9 @@ class MemoryConfig:
         if cfg.reinforce and cfg.forks:
             raise ValueError(f"{path}: both reinforce and forks; expected at most one stage "
                              "after cloning")  # fmt: skip
+        if not (isinstance(cfg.explore, int) and 1 <= cfg.explore <= cls.MAX_EXPLORE):
+            raise ValueError(f"{path}: explore {cfg.explore!r}; expected a whole number from 1 "
+                             f"to {cls.MAX_EXPLORE}")  # fmt: skip
         return cfg
 
     def settings(self) -> dict:

@@ -215,21 +215,27 @@ class JobChoice:
             cell = self.house.navgrid.cell_of(*self.assignment[2][:2])
             if cell in dist and not self.covered[cell]:
                 return cell
-        # The minimum of (moves + 8 x teammates within 5 cells, cell) over the reachable cells
-        # not searched and not avoided, computed over the whole grid at once.
+        rows, cols, order = self._unsearched(avoid, dist)
+        if not len(rows):
+            return None
+        return int(rows[order[0]]), int(cols[order[0]])
+
+    def _unsearched(
+        self, avoid: set[Cell], dist: Distances
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The reachable cells not searched and not avoided (rows, cols), and their order of
+        preference: by moves + 8 x teammates within 5 cells, then by cell; computed over the
+        whole grid at once."""
         candidates = (dist.moves >= 0) & ~self.covered
         for cell in avoid:
             if cell in dist:
                 candidates[cell] = False
         rows, cols = np.nonzero(candidates)
-        if not len(rows):
-            return None
         crowd = np.zeros(len(rows), np.int64)
         for n, (o, _) in self.teammates.items():
             if n != self.name:
                 crowd += np.abs(o[0] - rows) + np.abs(o[1] - cols) < 6
-        best = np.lexsort((cols, rows, dist.moves[rows, cols] + 8 * crowd))[0]
-        return int(rows[best]), int(cols[best])
+        return rows, cols, np.lexsort((cols, rows, dist.moves[rows, cols] + 8 * crowd))
 
     def _seg_of(self, oid: str | None) -> int:
         return next(s for s, inst in self.public.instances.items() if inst.id == oid)

@@ -13,9 +13,11 @@ pointer is trained by behaviour cloning on the teacher's own choices over the sa
 
 Stand-ins, as for the heuristic teams: detections are the renderer's ground-truth
 segmentation; whether an object is misplaced is D's answer for the surface it rests on, not a
-learned detector's. The explore and inspect candidates are the heuristic's choice of cell and
-surface. Because the pointer runs only when a job ends, an agent's step costs about what a
-heuristic agent's does (``python -m maniskill_tidy.bench --only teams --teams memory``).
+learned detector's. The inspect candidate is the heuristic's choice of surface; the explore
+candidates are the heuristic's choice of cell and, if the config asks (``explore``), the first
+unsearched cell of other rooms. Because the pointer runs only when a job ends, an agent's step
+costs about what a heuristic agent's does
+(``python -m maniskill_tidy.bench --only teams --teams memory``).
 """
 
 from __future__ import annotations
@@ -58,6 +60,7 @@ class MemoryAgent(MemoryCandidates, HeuristicAgent):
         if team.sampling_seed is not None:  # one stream per run seed, episode and agent
             self.sampler = np.random.default_rng([team.sampling_seed, public.seed, self.index])
         self.temperature = team.temperature
+        self.explore = team.config.explore
         mine = team.override is not None and team.override[0] == self.index
         self.override = team.override if mine else None  # (agent, n, slot): one other choice
         self.keep = team.keep_decisions

@@ -10,13 +10,16 @@ could take is a :class:`Candidate`:
 - ``look`` where a teammate reported a misplaced object (the ``MAX_LOOK`` nearest);
 - ``place`` what it holds on a surface of the floor plan where D holds (the ``MAX_PLACE``
   nearest);
-- ``explore``: walk to the nearest cell it has not searched (the heuristic's choice of cell);
+- ``explore``: walk to the nearest cell it has not searched (the heuristic's choice of cell)
+  and, with ``MemoryConfig.explore`` above 1, to the first such cell in the heuristic's order of
+  up to that many less one other rooms: where to search next becomes the pointer's choice;
 - ``inspect`` a surface its camera sees into or onto (the heuristic's choice of surface);
 - ``park``: stop for good.
 
-Each candidate becomes one row (:func:`encode`): its kind, the object type it concerns, the
-receptacle type of a ``place``, and the numbers of ``NUMERIC``; the agent's own situation is
-the ``CONTEXT`` row. The same rows are what the teacher's choice is recorded against
+Each candidate becomes one row (:meth:`MemoryCandidates._rows`): its kind, the object type it
+concerns, the receptacle type of a ``place``, and the numbers of ``NUMERIC`` (and of
+``ROOM_NUMERIC`` when the agent has explore candidates in other rooms); the agent's own
+situation is the ``CONTEXT`` row. The same rows are what the teacher's choice is recorded against
 (:func:`teacher_slot`) and what the trained pointer (``models/memory_pointer.py``) scores.
 """
 
@@ -27,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from maniskill_tidy.houses.navgrid import room_index
 from maniskill_tidy.knowledge import load_catalog
 from maniskill_tidy.policies.heuristic_jobs import TEAMMATE_STEPS, Report
 from maniskill_tidy.policies.navigation import Cell, Distances
@@ -39,12 +43,17 @@ NUMERIC = (
     "metres",  # straight distance from the agent / 10 m
     "moves",  # grid moves to the nearest reachable cell within 2 cells of it / 40
     "unreachable",  # no reachable cell within 2 cells of it
-    "rank",  # its place among the candidates of its kind, nearest first / 8
-    "beyond_nearest",  # metres beyond the nearest candidate of its kind / 10
+    "rank",  # its place among the candidates of its kind (nearest first; explore: the
+    # heuristic's order) / 8
+    "beyond_nearest",  # metres beyond the first candidate of its kind / 10
     "claimed",  # a nearer teammate manipulator said it goes for an object of this type
     "teammates_nearer",  # teammates it knows of (not stopped) nearer to it / 3
     "crowd",  # teammates it knows of within 5 cells of it / 3
     "height",  # metres above the floor
+)
+ROOM_NUMERIC = (  # appended to NUMERIC when MemoryConfig.explore > 1
+    "room_unsearched",  # the share of the reachable cells of its room the agent has not searched
+    "room_cells",  # the reachable cells of its room / 100
 )
 CONTEXT = (
     "navigation", "manipulation", "high_camera",  # the agent's capability vector
@@ -67,16 +76,29 @@ class Candidate:
 
 @dataclass
 class Rows:
-    """One decision's candidates, padded to SLOTS (kind -1: no candidate)."""
+    """One decision's candidates, padded to ``slots(explore)`` (kind -1: no candidate)."""
 
-    kind: np.ndarray  # (SLOTS,) int8
-    type: np.ndarray  # (SLOTS,) int16; len(categories): none
-    rest: np.ndarray  # (SLOTS,) int16; len(receptacles): none
-    numeric: np.ndarray  # (SLOTS, len(NUMERIC)) float32
+    kind: np.ndarray  # (slots,) int8
+    type: np.ndarray  # (slots,) int16; len(categories): none
+    rest: np.ndarray  # (slots,) int16; len(receptacles): none
+    numeric: np.ndarray  # (slots, numeric_width) float32
     context: np.ndarray  # (len(CONTEXT),) float32
 
 
+def slots(explore: int) -> int:
+    """Candidate rows per decision with ``explore`` explore candidates."""
+    return SLOTS - 1 + explore
+
+
+def numeric_width(explore: int) -> int:
+    """Numbers per candidate row with ``explore`` explore candidates."""
+    return len(NUMERIC) + (len(ROOM_NUMERIC) if explore > 1 else 0)
+
+
 class MemoryCandidates:
+    explore = 1  # explore candidates per decision (MemoryConfig.explore)
+    _room_index: np.ndarray | None = None
+
     def _candidates(self, avoid: set[Cell], dist: Distances) -> list[Candidate]:
         """Every job the agent could take now (see the top), in a fixed order."""
         s = self.state
@@ -95,8 +117,7 @@ class MemoryCandidates:
             reports = sorted(self.reports, key=lambda r: (self._metres(r.xy), r.type))
             for r in reports[:MAX_LOOK]:
                 out.append(Candidate("look", r, r.type, "", np.array([*r.xy, 0.4])))
-        cell = self._search_target(avoid, dist)
-        if cell is not None:
+        for cell in self._explore_cells(avoid, dist):
             xy = self.house.navgrid.center(*cell)
             out.append(Candidate("explore", cell, position=np.array([xy[0], xy[1], 0.0])))
         inspect = self._inspect_options()
@@ -104,6 +125,27 @@ class MemoryCandidates:
             out.append(Candidate("inspect", inspect[0], position=inspect[0].centre))
         out.append(Candidate("park", None))
         return out
+
+    def _explore_cells(self, avoid: set[Cell], dist: Distances) -> list[Cell]:
+        """The heuristic's cell to search, then the first unsearched cell (in the heuristic's
+        order) of each other room, until there are ``explore`` of them."""
+        first = self._search_target(avoid, dist)
+        if first is None or self.explore == 1:
+            return [] if first is None else [first]
+        rows, cols, order = self._unsearched(avoid, dist)
+        room = self._rooms()[rows[order], cols[order]]
+        _, firsts = np.unique(room, return_index=True)  # each room's first cell in the order
+        cells = [first]
+        for i in order[np.sort(firsts)]:
+            cell = (int(rows[i]), int(cols[i]))
+            if self._rooms()[cell] != self._rooms()[first] and len(cells) < self.explore:
+                cells.append(cell)
+        return cells
+
+    def _rooms(self) -> np.ndarray:
+        if self._room_index is None:
+            self._room_index = room_index(self.house)
+        return self._room_index
 
     def _job_for(self, c: Candidate, avoid: set[Cell]) -> Job:
         if c.kind == "fetch":
@@ -124,12 +166,18 @@ class MemoryCandidates:
 
     def _rows(self, cands: list[Candidate], dist: Distances) -> Rows:
         catalog = load_catalog()
-        assert len(cands) <= SLOTS
-        kind = np.full(SLOTS, -1, np.int8)
-        types = np.full(SLOTS, len(catalog.categories), np.int16)
-        rest = np.full(SLOTS, len(catalog.receptacles), np.int16)
-        numeric = np.zeros((SLOTS, len(NUMERIC)), np.float32)
+        n = slots(self.explore)
+        assert len(cands) <= n
+        kind = np.full(n, -1, np.int8)
+        types = np.full(n, len(catalog.categories), np.int16)
+        rest = np.full(n, len(catalog.receptacles), np.int16)
+        numeric = np.zeros((n, numeric_width(self.explore)), np.float32)
         nav = self.house.navgrid
+        reachable = dist.moves >= 0
+        if self.explore > 1:  # per room: reachable cells, and those not searched
+            rooms = self._rooms()
+            size = np.bincount(rooms[reachable] + 1, minlength=len(self.house.rooms) + 1)
+            open_ = np.bincount(rooms[reachable & ~self.covered] + 1, minlength=len(size))
         others = [
             (name, np.asarray(nav.center(*c)), c)
             for name, (c, t) in self.teammates.items()
@@ -150,8 +198,8 @@ class MemoryCandidates:
             cell = nav.cell_of(float(c.position[0]), float(c.position[1]))
             moves = _moves_near(dist, cell)
             xy = np.asarray(c.position[:2], float)
-            nearest.setdefault(c.kind, metres)  # each kind comes nearest first
-            numeric[i] = (
+            nearest.setdefault(c.kind, metres)  # each kind's first candidate
+            numeric[i, : len(NUMERIC)] = (
                 metres / 10,
                 max(moves, 0) / 40,
                 float(moves < 0),
@@ -168,8 +216,10 @@ class MemoryCandidates:
                 sum(abs(oc[0] - cell[0]) + abs(oc[1] - cell[1]) < 6 for *_, oc in others) / 3,
                 float(c.position[2]),
             )
+            if self.explore > 1 and 0 <= cell[0] < rooms.shape[0] and 0 <= cell[1] < rooms.shape[1]:
+                r = rooms[cell] + 1  # 0: outside every room
+                numeric[i, len(NUMERIC) :] = (open_[r] / max(size[r], 1), size[r] / 100) if r else 0
             rank[c.kind] = rank.get(c.kind, 0) + 1
-        reachable = dist.moves >= 0
         s = self.state
         context = np.array(
             [
@@ -206,8 +256,8 @@ def teacher_slot(cands: list[Candidate], job: Job, looking: Report | None) -> in
             return i
         if job.kind == "place" and c.kind == "place" and c.what.target == job.target:
             return i
-        if job.kind == "explore" and c.kind == "explore":
-            return i if c.what == job.leg.candidates[0].cell else None
+        if job.kind == "explore" and c.kind == "explore" and c.what == job.leg.candidates[0].cell:
+            return i
         if job.kind == "inspect" and c.kind == "inspect" and c.what.target == job.target:
             return i
         if job.kind == "park" and c.kind == "park":

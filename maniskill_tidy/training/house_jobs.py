@@ -79,8 +79,9 @@ def shards_digest(directory: Path, pattern: str) -> str:
 
 
 # What a key was before manifests recorded it: folders made before v2 existed are v1's, and
-# v1 folders leave the key out still, so that their manifests read as before.
-UNRECORDED = {"env": "HeteroTidy-v1"}
+# v1 folders leave the key out still, so that their manifests read as before; memory folders
+# made before MemoryConfig.explore had one explore candidate.
+UNRECORDED = {"env": "HeteroTidy-v1", "explore": 1}
 
 
 def check_same_config(manifest: Path, want: dict) -> None:

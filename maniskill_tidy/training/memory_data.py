@@ -8,8 +8,9 @@ skips finished houses), the first ``tasks`` meta-tasks of each, ``starts`` start
 
 Shard ``DIR/setting_S/SPLIT/house_NNNNN.npz``, one row per decision: ``episode`` (an index into
 the ``episodes`` JSON: id, success, length), ``agent``, ``t``, the candidates' ``kind``,
-``type``, ``rest`` (SLOTS each), ``numeric`` (SLOTS x NUMERIC), ``context`` and ``label`` (the
-teacher's slot). Choices that match no candidate are counted (``unmatched``), not kept.
+``type``, ``rest`` (``slots(explore)`` each), ``numeric`` (slots x ``numeric_width(explore)``),
+``context`` and ``label`` (the teacher's slot). Choices that match no candidate are counted
+(``unmatched``), not kept.
 """
 
 from __future__ import annotations
@@ -96,7 +97,7 @@ def build_memory_data(
     chosen = {k: v for k, v in asdict(select).items() if k in ("setting", "split", "starts",
                                                                 "tasks", "houses")}  # fmt: skip
     want = {"format_version": FORMAT_VERSION, "dataset_hash": episodes.dataset_hash,
-            "teacher": cfg.teacher, "env": cfg.env, **chosen}  # fmt: skip
+            "teacher": cfg.teacher, "env": cfg.env, "explore": cfg.explore, **chosen}  # fmt: skip
     check_same_config(directory / "manifest.json", want)
     directory.mkdir(parents=True, exist_ok=True)
     jobs = [(h, idx, str(directory / f"{h}.npz")) for h, idx in by_house.items()

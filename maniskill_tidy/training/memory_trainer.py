@@ -28,7 +28,7 @@ from maniskill_tidy.knowledge import load_catalog
 from maniskill_tidy.models.checkpoints import save_memory, type_vectors, weights_sha256
 from maniskill_tidy.models.memory_pointer import MemoryPointer
 from maniskill_tidy.policies.agent_config import MemoryConfig
-from maniskill_tidy.policies.memory_candidates import CONTEXT, KINDS, NUMERIC
+from maniskill_tidy.policies.memory_candidates import CONTEXT, KINDS, numeric_width
 from maniskill_tidy.tasks.teams import SETTINGS
 from maniskill_tidy.training.memory_data import build_memory_data, load_memory_rows
 
@@ -81,7 +81,8 @@ def train_memory(config: Path, setting: str, progress: bool = True) -> dict:
                  for split, d in (("train", train_dir), ("val", val_dir))}  # fmt: skip
     torch.manual_seed(s["seed"])
     sizes = {"kinds": len(KINDS), "receptacles": len(load_catalog().receptacles),
-             "numeric": len(NUMERIC), "context": len(CONTEXT), **cfg.model}  # fmt: skip
+             "numeric": numeric_width(cfg.explore), "context": len(CONTEXT),
+             **cfg.model}  # fmt: skip
     model = MemoryPointer(type_vectors(), **sizes)
     optimiser = torch.optim.Adam(model.parameters(), lr=s["lr"])
     key = json.dumps({"settings": s, "sizes": sizes,
