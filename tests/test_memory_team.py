@@ -139,6 +139,21 @@ def test_memory_trains_seeded_and_its_team_plays(small_dataset, tmp_path):
     a = torch.load(folder / "model.pt", weights_only=False)["state"]
     b = torch.load(tmp_path / "b" / "setting_I" / "model.pt", weights_only=False)["state"]
     assert all(torch.equal(a[k], b[k]) for k in a)  # same seed, same data: the same weights
+    rooms = memory_config(tmp_path, small_dataset, "c", explore=2)
+    with pytest.raises(ValueError, match="other settings \\(explore\\)"):
+        train_memory(rooms, "I", progress=False)  # its rows do not mix with explore 1's
+
+
+def test_a_pointer_with_explore_candidates_trains_and_plays(small_dataset, tmp_path):
+    from maniskill_tidy.policies.memory_candidates import NUMERIC, ROOM_NUMERIC
+    from maniskill_tidy.training.memory_trainer import train_memory
+
+    config = memory_config(tmp_path, small_dataset, "rooms", explore=3, val_episodes=1)
+    card = train_memory(config, "I", progress=False)
+    assert card["data"]["train"]["explore"] == 3 and card["data"]["train"]["unmatched"] == 0
+    assert card["closed_loop"]["student"]["episodes"] == 1
+    saved = torch.load(tmp_path / "rooms" / "setting_I" / "model.pt", weights_only=False)
+    assert saved["sizes"]["numeric"] == len(NUMERIC) + len(ROOM_NUMERIC)
 
 
 def test_a_bad_memory_config_is_refused_in_one_line(tmp_path, small_dataset):
