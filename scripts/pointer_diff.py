@@ -35,8 +35,13 @@ def main() -> None:
         raise SystemExit(f"{args.rows}: no recorded decisions (house_*.npz) there")
     x = [torch.from_numpy(np.ascontiguousarray(rows[k]))
          for k in ("kind", "type", "rest", "numeric", "context")]  # fmt: skip
+    pointers = [load_memory(f)[0] for f in (args.first, args.second)]
+    for folder, pointer in zip((args.first, args.second), pointers, strict=True):
+        if pointer.numeric != x[3].shape[-1]:
+            p.error(f"{folder} reads {pointer.numeric} numbers per candidate, the rows "
+                    f"{x[3].shape[-1]}; expected pointers of the rows' explore")  # fmt: skip
     with torch.no_grad():
-        first, second = (load_memory(f)[0](*x).argmax(-1) for f in (args.first, args.second))
+        first, second = (pointer(*x).argmax(-1) for pointer in pointers)
     kind, context = x[0], x[4]
     k1, k2 = (kind.gather(1, c[:, None])[:, 0] for c in (first, second))
     differ = first != second

@@ -61,9 +61,15 @@ def test_explore_candidates_in_other_rooms_leave_the_teacher_and_its_choice_alon
         slots,
     )
 
-    def kept(agent, avoid, dist):  # the cells, with the heuristic's own choice beside them
+    def kept(agent, avoid, dist):  # the cells, beside the same rule written as a plain loop
         cells = explore_cells(agent, avoid, dist)
-        agent.seen.append((cells, agent._search_target(avoid, dist)))
+        rows, cols, order = agent._unsearched(avoid, dist)
+        rooms, want = agent._rooms(), []
+        for i in order:
+            cell = (int(rows[i]), int(cols[i]))
+            if not want or (rooms[cell] >= 0 and rooms[cell] not in {rooms[c] for c in want}):
+                want.append(cell)  # the heuristic's own cell, then each other room's first
+        agent.seen.append((cells, want[:3]))
         return cells
 
     explore_cells = MemoryCandidates._explore_cells
@@ -83,9 +89,8 @@ def test_explore_candidates_in_other_rooms_leave_the_teacher_and_its_choice_alon
     assert recorded == teacher
     rooms = recording.made[0]._rooms()
     assert len(set(rooms[rooms >= 0].tolist())) == 6
-    for cells, heuristics in MemoryCandidates.seen:
-        assert cells[:1] == ([heuristics] if heuristics else [])  # its own cell first
-        assert len({int(rooms[c]) for c in cells}) == len(cells) <= 3  # one per room
+    for cells, want in MemoryCandidates.seen:
+        assert cells == want
     explore = KINDS.index("explore")
     for agent in recording.made:
         for _, rows, slot in agent.decisions:
@@ -145,6 +150,7 @@ def test_memory_trains_seeded_and_its_team_plays(small_dataset, tmp_path):
 
 
 def test_a_pointer_with_explore_candidates_trains_and_plays(small_dataset, tmp_path):
+    from maniskill_tidy.policies import team_class
     from maniskill_tidy.policies.memory_candidates import NUMERIC, ROOM_NUMERIC
     from maniskill_tidy.training.memory_trainer import train_memory
 
@@ -154,6 +160,12 @@ def test_a_pointer_with_explore_candidates_trains_and_plays(small_dataset, tmp_p
     assert card["closed_loop"]["student"]["episodes"] == 1
     saved = torch.load(tmp_path / "rooms" / "setting_I" / "model.pt", weights_only=False)
     assert saved["sizes"]["numeric"] == len(NUMERIC) + len(ROOM_NUMERIC)
+    team = ((1, 0, 0), (1, 0, 1), (1, 1, 1))
+    assert team_class(str(config)).missing_model(team) is None
+    for other in (1, 2):  # the same weights under a config with other candidates
+        changed = memory_config(tmp_path, small_dataset, "rooms", explore=other)
+        why = team_class(str(changed)).missing_model(team)
+        assert f"trained with explore 3, where the config asks for {other}; train it" in why
 
 
 def test_a_bad_memory_config_is_refused_in_one_line(tmp_path, small_dataset):

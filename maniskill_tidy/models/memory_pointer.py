@@ -21,6 +21,7 @@ class MemoryPointer(nn.Module):
         context: int, dim: int = 64, heads: int = 4,
     ) -> None:  # fmt: skip
         super().__init__()
+        self.numeric = numeric  # numbers per candidate row (memory_candidates.numeric_width)
         none = torch.zeros(1, type_vectors.shape[1])  # the last type: the candidate has none
         self.register_buffer("type_vectors", torch.cat([type_vectors.float(), none]))
         self.type_embedding = nn.Embedding(len(type_vectors) + 1, 16)

@@ -278,7 +278,7 @@ class MemoryConfig:
         if cfg.reinforce and cfg.forks:
             raise ValueError(f"{path}: both reinforce and forks; expected at most one stage "
                              "after cloning")  # fmt: skip
-        if not (isinstance(cfg.explore, int) and 1 <= cfg.explore <= cls.MAX_EXPLORE):
+        if not (type(cfg.explore) is int and 1 <= cfg.explore <= cls.MAX_EXPLORE):
             raise ValueError(f"{path}: explore {cfg.explore!r}; expected a whole number from 1 "
                              f"to {cls.MAX_EXPLORE}")  # fmt: skip
         return cfg

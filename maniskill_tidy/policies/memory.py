@@ -39,7 +39,12 @@ from maniskill_tidy.policies.base import Agent, PublicInfo
 from maniskill_tidy.policies.channel import Outbox
 from maniskill_tidy.policies.heuristic import HeuristicAgent, HeuristicTeam
 from maniskill_tidy.policies.heuristic_jobs import JobChoice
-from maniskill_tidy.policies.memory_candidates import KINDS, MemoryCandidates, teacher_slot
+from maniskill_tidy.policies.memory_candidates import (
+    KINDS,
+    MemoryCandidates,
+    numeric_width,
+    teacher_slot,
+)
 from maniskill_tidy.policies.navigation import Cell
 from maniskill_tidy.policies.walker import Job
 from maniskill_tidy.tasks.teams import SETTINGS, setting_of
@@ -159,7 +164,11 @@ class MemoryTeam(HeuristicTeam):
             verify(cls.model_folder(team), hint)
         except CheckpointError as err:
             return str(err)
-        return None
+        from maniskill_tidy.policies.learned import resolve
+
+        explore = MemoryConfig.load(resolve(cls.config_file)).explore
+        why = _other_candidates(load_memory(cls.model_folder(team))[1], explore)
+        return f"{cls.model_folder(team)}: {why}; train it again with `{hint}`" if why else None
 
     @classmethod
     def model_hash(cls, team: tuple) -> str:
@@ -170,7 +179,11 @@ class MemoryTeam(HeuristicTeam):
         setting = self.trained_setting(capabilities)
         if setting not in self._loaded:
             torch.set_num_threads(1)  # batch-of-one inference beside the env and teammates
-            self._loaded[setting] = load_memory(self.model_folder(capabilities))[0]
+            model, saved = load_memory(self.model_folder(capabilities))
+            why = _other_candidates(saved, self.config.explore)
+            if why:
+                raise CheckpointError(f"{self.model_folder(capabilities)}: {why}")
+            self._loaded[setting] = model
         return self._loaded[setting]
 
     def use_pointer(self, setting: str, model) -> None:
@@ -183,6 +196,15 @@ class MemoryTeam(HeuristicTeam):
         if self.recording or self.sampling_seed is not None or self.keep_decisions:
             self.made.append(agent)
         return agent
+
+
+def _other_candidates(saved: dict, explore: int) -> str | None:
+    """Why a saved pointer does not fit a config's ``explore`` (None: it does)."""
+    width, trained = saved["sizes"]["numeric"], saved.get("explore")  # saved only above 1
+    if width != numeric_width(explore) or trained not in (None, explore):
+        had = trained or ("1" if width == numeric_width(1) else "above 1")
+        return f"a pointer trained with explore {had}, where the config asks for {explore}"
+    return None
 
 
 def memory_team_class(config: str | Path) -> type[MemoryTeam]:

@@ -138,7 +138,7 @@ class MemoryCandidates:
         cells = [first]
         for i in order[np.sort(firsts)]:
             cell = (int(rows[i]), int(cols[i]))
-            if self._rooms()[cell] != self._rooms()[first] and len(cells) < self.explore:
+            if 0 <= self._rooms()[cell] != self._rooms()[first] and len(cells) < self.explore:
                 cells.append(cell)
         return cells
 

@@ -147,7 +147,10 @@ def train_memory(config: Path, setting: str, progress: bool = True) -> dict:
 
         model, forked = improve_pointer(cfg, config, setting, model, sizes, progress)
     folder = Path(cfg.out) / f"setting_{setting}"
-    save_memory(model, folder, sizes, {"name": cfg.name, "teacher": cfg.teacher})
+    extra = {"name": cfg.name, "teacher": cfg.teacher}
+    if cfg.explore > 1:  # pointers trained before the option had one explore candidate
+        extra["explore"] = cfg.explore
+    save_memory(model, folder, sizes, extra)
     card = {
         "name": cfg.name, "setting": setting, "config": str(config), "settings": asdict(cfg),
         "train": s, "data": manifests, "epochs": state["epoch"], "best_epoch": state["best_epoch"],
