@@ -4,7 +4,7 @@
 
 Reads the run's checkpoint (``state.pt``: every pair so far) and prints, per (best choice's
 kind, other choice's kind), how many forks there were, in how many the other choice did better
-or worse, and the mean gain of the team's discounted return. With ``--pointer`` (the cloned
+or worse, and the mean gain of the team return (the run's gamma). With ``--pointer`` (the cloned
 pointer's folder), whether the pairs can be predicted at all: a copy of that pointer is trained
 on the pairs of all base episodes but the last ``--held-out`` ones, with no KL term, and both
 pointers rank the held-out pairs whose returns differ. Nothing is written.
@@ -16,6 +16,7 @@ pointers rank the held-out pairs whose returns differ. Nothing is written.
 from __future__ import annotations
 
 import argparse
+import json
 from collections import defaultdict
 from pathlib import Path
 
@@ -40,7 +41,8 @@ def main() -> None:
     ckpt = args.run / "state.pt"
     if not ckpt.is_file():
         p.error(f"{ckpt} not found; expected the folder of a forks run")
-    pairs = torch.load(ckpt, weights_only=False)["pairs"]
+    state = torch.load(ckpt, weights_only=False)
+    pairs, gamma = state["pairs"], json.loads(state["key"])["forks"]["gamma"]
     table: dict[tuple[str, str], list[tuple[float, float]]] = defaultdict(list)
     for part in pairs:
         rows = np.arange(len(part["gain"]))
@@ -52,8 +54,8 @@ def main() -> None:
             table[(KINDS[int(b)], KINDS[int(o)])].append((float(g), float(e)))
     total = sum(len(v) for v in table.values())
     print(
-        f"{total} forks in {len(pairs)} base episodes; the discounted team return, then the "
-        "share placed at the end (undiscounted, what the metrics see; n/a in older runs)"
+        f"{total} forks in {len(pairs)} base episodes; the team return (gamma {gamma}), then "
+        "the share placed at the end (undiscounted, what the metrics see; n/a in older runs)"
     )
     print(f"{'best':>8} -> {'other':<8} {'forks':>6} {'better':>7} {'worse':>6} {'mean gain':>10}"
           f" {'end better':>11} {'end worse':>10}")  # fmt: skip
