@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from functools import partial
 from types import SimpleNamespace
 
 import networkx as nx
@@ -100,6 +101,7 @@ def test_the_search_target_is_the_loop_minimum_over_reachable_cells():
             teammates={f"agent_{i}": (c, 0) for i, c in enumerate(pick(3))},
             covered=rng.random(planner.free.shape) < rng.random(),
         )  # fmt: skip
+        agent._unsearched = partial(JobChoice._unsearched, agent)
         avoid = set(pick(rng.integers(0, 10)))
         dist = planner.distances(agent.state.cell, set(agent.parked.values()))
         others = [c for n, (c, _) in agent.teammates.items() if n != agent.name]
@@ -110,6 +112,8 @@ def test_the_search_target_is_the_loop_minimum_over_reachable_cells():
         ]
         want = min(scores)[1] if scores else None
         assert JobChoice._search_target(agent, avoid) == want
+        rows, cols, order = agent._unsearched(avoid, dist)  # the whole order (explore candidates)
+        assert [(int(rows[i]), int(cols[i])) for i in order] == [c for _, c in sorted(scores)]
 
 
 def test_the_nearest_reachable_cell_is_the_minimum_over_the_whole_search():

@@ -55,3 +55,21 @@ class MemoryPointer(nn.Module):
         )  # fmt: skip
         h = self.entry(x) + self.context(context.float())[:, None]
         return self.mix(h, src_key_padding_mask=~present), present
+
+
+class KindBias(nn.Module):
+    """A pointer whose score of each candidate is raised by its kind's bias: a whole-policy
+    change of a few numbers, for comparing policies on the same episodes
+    (``scripts/kind_bias_probe.py``)."""
+
+    def __init__(self, pointer: MemoryPointer, bias: list[float]) -> None:
+        super().__init__()
+        self.pointer, self.numeric = pointer, pointer.numeric
+        self.register_buffer("bias", torch.tensor(bias, dtype=torch.float32))
+
+    def forward(
+        self, kind: torch.Tensor, types: torch.Tensor, rest: torch.Tensor,
+        numeric: torch.Tensor, context: torch.Tensor,
+    ) -> torch.Tensor:  # fmt: skip
+        scores = self.pointer(kind, types, rest, numeric, context)
+        return scores + self.bias[kind.long().clamp(min=0)]

@@ -40,7 +40,7 @@ from maniskill_tidy.models.checkpoints import (
     state_digest,
     type_vectors,
 )
-from maniskill_tidy.models.memory_pointer import MemoryPointer
+from maniskill_tidy.models.memory_pointer import KindBias, MemoryPointer
 from maniskill_tidy.policies.agent_config import MemoryConfig
 
 INPUTS = ("kind", "type", "rest", "numeric", "context")
@@ -95,7 +95,8 @@ def _init(config: str, setting: str, split: str):
 def _play(job: tuple[int, str, dict]) -> dict:
     """One episode with the policy in ``path``; ``mode``: ``seed`` (drawn choices, kept with
     their returns), else the best choices, with ``override`` (one other choice) and ``keep``
-    (every choice kept) for forks (``training/memory_forks.py``)."""
+    (every choice kept) for forks (``training/memory_forks.py``); ``bias``: one number per kind
+    added to the scores."""
     from maniskill_tidy.eval.episode import play_episode
     from maniskill_tidy.policies.memory import memory_team_class
 
@@ -108,7 +109,10 @@ def _play(job: tuple[int, str, dict]) -> dict:
         sampling_seed=seed, temperature=mode.get("temperature", 1.0), override=override,
         keep_decisions=bool(mode.get("keep")),
     )  # fmt: skip
-    team.use_pointer(_worker["setting"], _worker["model"])
+    model = _worker["model"]
+    if mode.get("bias"):  # the kinds' biases on the scores (scripts/kind_bias_probe.py)
+        model = KindBias(model, mode["bias"])
+    team.use_pointer(_worker["setting"], model)
     reward = TeamReward()
     record = play_episode(_worker["env"], team, index, index, [reward])
     g = returns(reward.placed, record.k, record.success, mode["gamma"], mode["bonus"])
