@@ -125,6 +125,25 @@ def test_the_pointer_ignores_padding_and_never_points_at_it():
     assert torch.isinf(long[0, 4:]).all() and int(long.argmax()) < 4
 
 
+def test_a_kind_bias_moves_only_that_kinds_scores_and_never_revives_padding():
+    from maniskill_tidy.models.checkpoints import type_vectors
+    from maniskill_tidy.models.memory_pointer import KindBias, MemoryPointer
+
+    torch.manual_seed(0)
+    model = MemoryPointer(type_vectors(), kinds=6, receptacles=10, numeric=9, context=10).eval()
+    kind = torch.tensor([[0, 3, 3, 5, -1]])
+    types, rest = torch.zeros(1, 5, dtype=torch.long), torch.zeros(1, 5, dtype=torch.long)
+    numeric, context = torch.rand(1, 5, 9), torch.rand(1, 10)
+    biased = KindBias(model, [0.0, 0.0, 0.0, 50.0, 0.0, -1.0])
+    with torch.no_grad():
+        plain, moved = (
+            model(kind, types, rest, numeric, context),
+            biased(kind, types, rest, numeric, context),
+        )
+    assert torch.allclose(moved[0, :4] - plain[0, :4], torch.tensor([0.0, 50.0, 50.0, -1.0]))
+    assert torch.isinf(moved[0, 4]) and int(moved.argmax()) in (1, 2)  # an explore, never padding
+
+
 def test_memory_trains_seeded_and_its_team_plays(small_dataset, tmp_path):
     from maniskill_tidy.training.memory_trainer import train_memory
 
