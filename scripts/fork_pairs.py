@@ -4,7 +4,8 @@
 
 Reads the run's checkpoint (``state.pt``: every pair so far) and prints, per (best choice's
 kind, other choice's kind), how many forks there were, in how many the other choice did better
-or worse, and the mean gain of the team return (the run's gamma). With ``--pointer`` (the cloned
+or worse, and the mean gain of the team return (the run's gamma); then how often a fork changed
+the return by the decision's step and by who decided. With ``--pointer`` (the cloned
 pointer's folder), whether the pairs can be predicted at all: a copy of that pointer is trained
 on the pairs of all base episodes but the last ``--held-out`` ones, with no KL term, and both
 pointers rank the held-out pairs whose returns differ. Nothing is written.
@@ -64,8 +65,27 @@ def main() -> None:
         end = "n/a" if np.isnan(e).all() else f"{(e > 0).sum():>11} {(e < 0).sum():>10}"
         print(f"{b:>8} -> {o:<8} {len(g):>6} {(g > 0).sum():>7} {(g < 0).sum():>6} "
               f"{g.mean():>+10.4f} {end:>11}")  # fmt: skip
+    when_and_who(pairs)
     if args.pointer is not None:
         held_out(pairs, args.pointer, args.held_out, args.epochs)
+
+
+def when_and_who(pairs: list[dict]) -> None:
+    """How often a fork changed the return, by the decision's step and by who decided."""
+    from maniskill_tidy.policies.memory_candidates import CONTEXT
+
+    gain = np.concatenate([p["gain"] for p in pairs])
+    context = np.concatenate([p["context"] for p in pairs])
+    t = context[:, CONTEXT.index("time")] * 300
+    manipulator = context[:, CONTEXT.index("manipulation")] > 0.5
+    groups = [(f"steps {lo}-{hi - 1}", (t >= lo) & (t < hi))
+              for lo, hi in ((0, 50), (50, 100), (100, 200), (200, 300))]  # fmt: skip
+    groups += [("manipulators", manipulator), ("the others", ~manipulator)]
+    for name, m in groups:
+        print(
+            f"{name:>14}: {int(m.sum()):>4} forks, {int((gain[m] != 0).sum()):>3} changed the "
+            f"return ({int((gain[m] > 0).sum())} better, {int((gain[m] < 0).sum())} worse)"
+        )
 
 
 def held_out(pairs: list[dict], folder: Path, n: int, epochs: int) -> None:
