@@ -47,21 +47,15 @@ def test_recording_plays_as_the_teacher_and_every_choice_is_a_candidate(small_da
     assert {"fetch", "place"} <= kinds  # it tidied something, so it chose both
 
 
-# slow: with both in the default suite, the pytest process crashed at exit (2 of 2)
-@pytest.mark.slow
-def test_explore_candidates_in_other_rooms_leave_the_teacher_and_its_choice_alone(
-    small_dataset, tmp_path, monkeypatch
-):
+def _play_explore_episode(config: str, dataset: str, start: str) -> dict:
+    """The teacher's episode, then the recording's with ``_explore_cells`` watched: in a
+    worker process, since renderers made in pytest's own one crash it (conftest)."""
     from maniskill_tidy.eval.runner import RunConfig, make_env, run_episode
     from maniskill_tidy.policies import make_team
     from maniskill_tidy.policies.memory import memory_team_class
-    from maniskill_tidy.policies.memory_candidates import (
-        KINDS,
-        NUMERIC,
-        ROOM_NUMERIC,
-        MemoryCandidates,
-        slots,
-    )
+    from maniskill_tidy.policies.memory_candidates import MemoryCandidates
+
+    explore_cells, seen = MemoryCandidates._explore_cells, []
 
     def kept(agent, avoid, dist):  # the cells, beside the same rule written as a plain loop
         cells = explore_cells(agent, avoid, dist)
@@ -71,39 +65,52 @@ def test_explore_candidates_in_other_rooms_leave_the_teacher_and_its_choice_alon
             cell = (int(rows[i]), int(cols[i]))
             if not want or (rooms[cell] >= 0 and rooms[cell] not in {rooms[c] for c in want}):
                 want.append(cell)  # the heuristic's own cell, then each other room's first
-        agent.seen.append((cells, want[:3]))
+        seen.append((cells, want[:3]))
         return cells
 
-    explore_cells = MemoryCandidates._explore_cells
-    monkeypatch.setattr(MemoryCandidates, "_explore_cells", kept)
-    monkeypatch.setattr(MemoryCandidates, "seen", [], raising=False)
-    config = memory_config(tmp_path, small_dataset, explore=3)
+    MemoryCandidates._explore_cells = kept  # this worker ends with the test
     recording = memory_team_class(config)(recording=True)
-    env = make_env(RunConfig("heuristic-detection", "I", "train", str(small_dataset)))
-    starts = [e.id for e in env.unwrapped.episodes.episodes]
-    i = starts.index("house_00004/task_0/start_0")  # six rooms
+    env = make_env(RunConfig("heuristic-detection", "I", "train", dataset))
+    i = [e.id for e in env.unwrapped.episodes.episodes].index(start)
     try:
         teacher = run_episode(env, make_team("heuristic-detection"), i, i).to_dict()
         recorded = run_episode(env, recording, i, i).to_dict()
     finally:
         env.close()
     teacher.pop("seconds"), recorded.pop("seconds")
-    assert recorded == teacher
     rooms = recording.made[0]._rooms()
-    assert len(set(rooms[rooms >= 0].tolist())) == 6
-    for cells, want in MemoryCandidates.seen:
+    decisions = [(rows, slot) for a in recording.made for _, rows, slot in a.decisions]
+    return {"teacher": teacher, "recorded": recorded, "seen": seen, "decisions": decisions,
+            "rooms": len(set(rooms[rooms >= 0].tolist()))}  # fmt: skip
+
+
+def test_explore_candidates_in_other_rooms_leave_the_teacher_and_its_choice_alone(
+    small_dataset, tmp_path
+):
+    from concurrent.futures import ProcessPoolExecutor
+    from multiprocessing import get_context
+
+    from maniskill_tidy.policies.memory_candidates import KINDS, NUMERIC, ROOM_NUMERIC, slots
+
+    config = memory_config(tmp_path, small_dataset, explore=3)
+    with ProcessPoolExecutor(1, mp_context=get_context("spawn")) as pool:
+        args = str(config), str(small_dataset), "house_00004/task_0/start_0"  # six rooms
+        played = pool.submit(_play_explore_episode, *args).result()
+    assert played["recorded"] == played["teacher"]
+    assert played["rooms"] == 6
+    for cells, want in played["seen"]:
         assert cells == want
     explore = KINDS.index("explore")
-    for agent in recording.made:
-        for _, rows, slot in agent.decisions:
-            assert rows.kind.shape == (slots(3),)
-            assert rows.numeric.shape == (slots(3), len(NUMERIC) + len(ROOM_NUMERIC))
-            at = [i for i in range(len(rows.kind)) if rows.kind[i] == explore]
-            if rows.kind[slot] == explore:
-                assert slot == at[0]  # the teacher took the heuristic's cell
-            unsearched = rows.numeric[at, len(NUMERIC)]
-            assert ((0 < unsearched) & (unsearched <= 1)).all()  # each has a cell to search
-    assert max(len(cells) for cells, _ in MemoryCandidates.seen) == 3
+    assert played["decisions"]
+    for rows, slot in played["decisions"]:
+        assert rows.kind.shape == (slots(3),)
+        assert rows.numeric.shape == (slots(3), len(NUMERIC) + len(ROOM_NUMERIC))
+        at = [i for i in range(len(rows.kind)) if rows.kind[i] == explore]
+        if rows.kind[slot] == explore:
+            assert slot == at[0]  # the teacher took the heuristic's cell
+        unsearched = rows.numeric[at, len(NUMERIC)]
+        assert ((0 < unsearched) & (unsearched <= 1)).all()  # each has a cell to search
+    assert max(len(cells) for cells, _ in played["seen"]) == 3
 
 
 def test_the_pointer_ignores_padding_and_never_points_at_it():
@@ -170,8 +177,6 @@ def test_memory_trains_seeded_and_its_team_plays(small_dataset, tmp_path):
         train_memory(rooms, "I", progress=False)  # its rows do not mix with explore 1's
 
 
-# slow: with both in the default suite, the pytest process crashed at exit (2 of 2)
-@pytest.mark.slow
 def test_a_pointer_with_explore_candidates_trains_and_plays(small_dataset, tmp_path):
     from maniskill_tidy.policies import team_class
     from maniskill_tidy.policies.memory_candidates import NUMERIC, ROOM_NUMERIC

@@ -205,17 +205,19 @@ class JobChoice:
         leg = Leg(viewpoints(self.house, o.centre + [0, 0, 0.05], self.height)[:12])
         return Job("inspect", o.target, leg, SubTask(EXPLORE))
 
-    def _search_target(self, avoid: set[Cell], dist: Distances | None = None) -> Cell | None:
+    def _search_target(
+        self, avoid: set[Cell], dist: Distances | None = None, unsearched: tuple | None = None
+    ) -> Cell | None:
         """Where to search next: the central node's area, else the nearest unsearched cell
-        (as far as this agent knows) away from the teammates it knows of. ``dist``: the moves
-        from the agent's cell around parked teammates, when the caller has them already."""
+        (as far as this agent knows) away from the teammates it knows of. ``dist`` and
+        ``unsearched`` (``_unsearched``'s answer): when the caller has them already."""
         if dist is None:
             dist = self.planner.distances(self.state.cell, set(self.parked.values()))
         if self.assignment is not None and self.assignment[0] == EXPLORE_AREA:
             cell = self.house.navgrid.cell_of(*self.assignment[2][:2])
             if cell in dist and not self.covered[cell]:
                 return cell
-        rows, cols, order = self._unsearched(avoid, dist)
+        rows, cols, order = unsearched or self._unsearched(avoid, dist)
         if not len(rows):
             return None
         return int(rows[order[0]]), int(cols[order[0]])

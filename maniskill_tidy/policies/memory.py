@@ -31,7 +31,7 @@ import torch
 from maniskill_tidy.models.checkpoints import (
     CheckpointError,
     load_memory,
-    verify,
+    read,
     weights_digest,
 )
 from maniskill_tidy.policies.agent_config import MemoryConfig
@@ -161,13 +161,13 @@ class MemoryTeam(HeuristicTeam):
     def missing_model(cls, team: tuple) -> str | None:
         hint = f"maniskill-tidy train {cls.config_file} --setting {cls.trained_setting(team)}"
         try:
-            verify(cls.model_folder(team), hint)
+            saved = read(cls.model_folder(team), hint)
         except CheckpointError as err:
             return str(err)
         from maniskill_tidy.policies.learned import resolve
 
         explore = MemoryConfig.load(resolve(cls.config_file)).explore
-        why = _other_candidates(load_memory(cls.model_folder(team))[1], explore)
+        why = _other_candidates(saved, explore)
         return f"{cls.model_folder(team)}: {why}; train it again with `{hint}`" if why else None
 
     @classmethod

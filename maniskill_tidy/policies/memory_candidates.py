@@ -129,10 +129,10 @@ class MemoryCandidates:
     def _explore_cells(self, avoid: set[Cell], dist: Distances) -> list[Cell]:
         """The heuristic's cell to search, then the first unsearched cell (in the heuristic's
         order) of each other room, until there are ``explore`` of them."""
-        first = self._search_target(avoid, dist)
+        rows, cols, order = unsearched = self._unsearched(avoid, dist)
+        first = self._search_target(avoid, dist, unsearched)
         if first is None or self.explore == 1:
             return [] if first is None else [first]
-        rows, cols, order = self._unsearched(avoid, dist)
         room = self._rooms()[rows[order], cols[order]]
         _, firsts = np.unique(room, return_index=True)  # each room's first cell in the order
         cells = [first]
