@@ -460,3 +460,36 @@ def test_agents_thinking_on_threads_or_in_processes_act_as_on_one(policy, monkey
     assert played["one"][2] or policy != "hangrcom"  # HanGrCom reports T every step
     _same_traces(played["one"], played["threads"])
     _same_traces(played["one"], played["processes"])
+
+
+@pytest.mark.parametrize("rule", [False, True])
+def test_a_surface_without_room_is_given_up_for_that_object_only_under_the_rule(
+    small_house_public, rule, monkeypatch
+):
+    """PutDown's "no room" is about the whole surface (the env searched it): under
+    ``FULL_SURFACE_RULE`` the agent drops that surface for that object at once; without it
+    (the committed rows' rule) it walks on to the surface's next viewpoint."""
+    from maniskill_tidy.sim.house_scene import Instance
+
+    monkeypatch.setattr(HeuristicAgent, "FULL_SURFACE_RULE", rule)
+    instances = {7: Instance(7, "object", "Book", "Book_1"),
+                 8: Instance(8, "object", "Book", "Book_2")}  # fmt: skip
+    public = dataclasses.replace(small_house_public, instances=instances)
+    outbox = Outbox(Channel(public.agents), "agent_2")
+    agent = make_team("heuristic-none").make_agent("agent_2", public, outbox)
+    agent.state.held = "Book_1"
+    targets = [o.target for o in agent._place_options()]
+    assert len(targets) >= 2
+    job = agent.job = agent._place_job_at(agent._place_options()[0])
+    job.issued, job.leg.goal = True, job.leg.candidates[0]  # it stood there and tried
+    x, y = public.house.navgrid.center(*job.leg.goal.cell)
+    obs = {"pose": np.array([x, y, 0.0]), "extrinsics": np.eye(4), "held": np.int32(7)}
+    agent.observe(AgentView("agent_2", 5, obs, f"no room for Book_1 on {job.target}"))
+    after = {o.target for o in agent._place_options()}
+    if rule:
+        assert agent.job is None and after == set(targets) - {job.target}
+        agent.state.held = "Book_2"  # the same surface may still fit another object
+        assert {o.target for o in agent._place_options()} == set(targets)
+    else:
+        assert agent.job is job and after == set(targets)
+        assert job.leg.goal is None and job.leg.tried == {job.leg.candidates[0].cell}  # next

@@ -150,13 +150,13 @@ class JobChoice:
 
     def _place_options(self) -> list[PlaceOption]:
         """The surfaces of the floor plan where D holds for what the agent holds (and which did
-        not refuse it), nearest first (the floor plan's order among equals)."""
+        not refuse it, or this object), nearest first (the floor plan's order among equals)."""
         held_type = self.public.instances[self._seg_of(self.state.held)].type
         here = np.asarray(self.house.navgrid.center(*self.state.cell))
         options = []
         for spot in self.surfaces:
             target = f"{spot.furniture}/{spot.surface}"
-            if target in self.bad_surfaces:
+            if target in self.bad_surfaces or (self.state.held, target) in self.full:
                 continue
             rtype = self.furniture[spot.furniture].surface(spot.surface).receptacle_type
             if not self.knowledge.D(held_type, rtype, self.room_type[spot.room]):
