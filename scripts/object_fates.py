@@ -26,6 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
+from maniskill_tidy.envs.actions import MIN_PIXELS, NO_ROOM
+
 FATES = ("never in view", "in view, never picked", "picked, not placed", "placed")
 REASONS = ("only non-manipulators had it in view", "a manipulator had it in view")
 BELIEFS = ("no agent's own detection", "judged in place", "judged misplaced")
@@ -53,8 +55,6 @@ class ObjectFates:
         self.given_up: set[str] = set()  # a manipulator found no viewpoint to pick it up from
 
     def observed(self, t: int, obs: dict, info: dict) -> None:
-        from maniskill_tidy.envs.actions import MIN_PIXELS
-
         for name, agent_obs in obs.items():
             if "segmentation" not in agent_obs:
                 raise SystemExit("object_fates: the team's observation has no segmentation")
@@ -65,8 +65,6 @@ class ObjectFates:
                     self.seen.setdefault(oid, t)
                     if name in self.manipulators:
                         self.seen_by_manipulator.setdefault(oid, t)
-        for oid in info.get("picked", []):
-            self.picked.setdefault(oid, t)
         for agent in self.agents:  # what the agents' own detections made of it (heuristic kin)
             manipulator = agent.name in self.manipulators
             for oid, known in getattr(agent, "objects", {}).items():
@@ -82,7 +80,7 @@ class ObjectFates:
             self.picked.setdefault(oid, t)
         for reason in info.get("failed", {}).values():
             if reason:  # the PutDowns refused because the surface had no room for the object
-                self.failures["no room" if reason.startswith("no room") else "other"] += 1
+                self.failures["no room" if reason.startswith(NO_ROOM) else "other"] += 1
         if self.tracing:  # every PickUp and PutDown, and how it ended
             for name, action in actions.items():
                 if hasattr(action, "target"):

@@ -66,6 +66,7 @@ LOOK = 30  # degrees per look step
 HORIZON_RANGE = (-30, 60)
 REACH = ARM_REACH  # metres, horizontal, from the robot's centre (1.5)
 MIN_PIXELS = 20  # an instance covering fewer pixels than this is not "visible"
+NO_ROOM = "no room for"  # how a PutDown the whole surface had no room for fails (agents read it)
 MAX_STEPS = 300
 
 

@@ -8,7 +8,7 @@ from collections import Counter
 import numpy as np
 import sapien
 
-from maniskill_tidy.envs.actions import MIN_PIXELS, REACH, AgentState
+from maniskill_tidy.envs.actions import MIN_PIXELS, NO_ROOM, REACH, AgentState
 from maniskill_tidy.houses.furnish import GAP, overlaps
 from maniskill_tidy.houses.objects import is_hanging, stacked_footprints
 from maniskill_tidy.houses.schema import Furniture, Surface, rotated_bounds
@@ -128,7 +128,7 @@ class Manipulation:
                 self.hs.state[oid] = self.locate(oid)
                 return f"{oid} was not stable on {f.id}/{s.name} and fell"
             return None
-        return f"no room for {oid} on " + ", ".join(reasons[:3])
+        return f"{NO_ROOM} {oid} on " + ", ".join(reasons[:3])
 
     def put_candidates(
         self,

@@ -29,7 +29,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from maniskill_tidy.envs.actions import Action, AgentState, Targeted, move_target
+from maniskill_tidy.envs.actions import NO_ROOM, Action, AgentState, Targeted, move_target
 from maniskill_tidy.envs.robots import robot_kind
 from maniskill_tidy.knowledge import FLOOR, load_placement
 from maniskill_tidy.perception.detections import (
@@ -128,7 +128,7 @@ class HeuristicAgent(JobChoice, Agent):
             if (
                 self.FULL_SURFACE_RULE
                 and self.job.kind == "place"
-                and view.failed.startswith("no room for")
+                and view.failed.startswith(NO_ROOM)
             ):
                 # the env searched the whole surface: no other viewpoint of it can help
                 self.full.add((s.held, self.job.target))
