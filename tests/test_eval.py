@@ -18,6 +18,7 @@ from maniskill_tidy.eval.metrics import EpisodeRecord, ces, summarize
 from maniskill_tidy.eval.paper_tables import extract
 from maniskill_tidy.eval.runner import (
     RunConfig,
+    RunFile,
     evaluate,
     exclusive,
     read_records,
@@ -274,6 +275,34 @@ def _summary(policy: str, success: list[bool], acm_values: int, **extra) -> dict
         "metrics": summarize(records),
         "episode_seconds_mean": 1.0,
     }
+
+
+def test_a_row_played_under_a_teams_earlier_rules_is_marked_and_not_resumed(tmp_path):
+    """A team whose rules changed on purpose (``Team.rules``): its old rows are marked on the
+    leaderboard until re-run, and an old run folder is not resumed under the new rules."""
+    from maniskill_tidy.policies import team_class
+
+    assert team_class("heuristic-none").rules == "full-surface"
+    assert team_class("agents/memory.yaml").rules == "full-surface"  # the same agent
+    assert team_class("hangrcom").rules == "" and not hasattr(team_class("expert"), "rules")
+    for policy, rules in [("heuristic-none", ""), ("heuristic-broadcast", "full-surface"),
+                          ("hangrcom", "")]:  # fmt: skip
+        folder = tmp_path / "results" / "setting_I" / policy
+        folder.mkdir(parents=True)
+        summary = {**_summary(policy, [True, False] * 5, 10), "rules": rules}
+        (folder / "summary.json").write_text(json.dumps(summary))
+        (folder / "run.json").write_text(json.dumps({"policy": policy}))
+    md = write_leaderboard(tmp_path).read_text()
+    marked = {line.split("|")[1].strip() for line in md.splitlines() if "¶ |" in line}
+    assert marked == {"**heuristic-none** ¶"}
+    assert "¶ heuristic-none: played under the team's rules 'as first played', not today's " \
+        "'full-surface'" in md  # fmt: skip
+    old = tmp_path / "old"
+    old.mkdir()
+    (old / "run.json").write_text(json.dumps({"policy": "heuristic-none", "seed": 0}))
+    with pytest.raises(ValueError, match="other arguments .'rules': .None, 'full-surface'"):
+        RunFile(old, {"policy": "heuristic-none", "seed": 0, "rules": "full-surface"})
+    RunFile(old, {"policy": "heuristic-none", "seed": 0})  # the same rules: resumed
 
 
 def test_paper_figures_whose_all_lies_outside_single_and_cross_are_flagged():

@@ -467,8 +467,8 @@ def test_a_surface_without_room_is_given_up_for_that_object_only_under_the_rule(
     small_house_public, rule, monkeypatch
 ):
     """PutDown's "no room" is about the whole surface (the env searched it): under
-    ``FULL_SURFACE_RULE`` the agent drops that surface for that object at once; without it
-    (the committed rows' rule) it walks on to the surface's next viewpoint."""
+    ``FULL_SURFACE_RULE`` (the default) the agent drops that surface for that object at once;
+    without it (the rule before it) it walks on to the surface's next viewpoint."""
     from maniskill_tidy.sim.house_scene import Instance
 
     monkeypatch.setattr(HeuristicAgent, "FULL_SURFACE_RULE", rule)

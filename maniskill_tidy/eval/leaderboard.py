@@ -9,7 +9,8 @@ CES needs the single-agent baseline's success in the same setting and split: our
 SA row for the paper's. A plot puts Success against ACm, with the Pareto fronts of our rows
 and of our learned rows alone.
 Our Success cells carry their 95 % bootstrap interval; a run whose episodes were played by more
-than one code version is flagged. Runs of the paper's full protocol (``eval ... --episodes all
+than one code version is flagged, and so is one played under a team's earlier rules
+(``Team.rules``). Runs of the paper's full protocol (``eval ... --episodes all
 --out eval/all``: every start, 1000 episodes) get a table of their own under each setting, so a
 method can have both its standard row and its full one.
 """
@@ -85,6 +86,9 @@ def collect(root: Path) -> dict[str, dict[str, dict]]:
     out: dict[str, dict[str, dict]] = {}
     for path in sorted(Path(root).glob("results/setting_*/*/summary.json")):
         summary = json.loads(path.read_text())
+        today = rules_today(path.parent)
+        if today is not None and today != summary.get("rules", ""):
+            summary["rules_today"] = today
         out.setdefault(summary["setting"], {})[summary["policy"]] = summary
     for setting, runs in out.items():
         for other, other_runs in out.items():
@@ -93,6 +97,18 @@ def collect(root: Path) -> dict[str, dict[str, dict]]:
                 if same_everywhere and policy not in runs and other != setting:
                     runs[policy] = {**s, "setting": setting, "shared_from": other}
     return out
+
+
+def rules_today(run: Path) -> str | None:
+    """Today's ``Team.rules`` of the team a run played (its ``run.json``'s policy argument), or
+    None where that team is not known here (a config since removed)."""
+    from maniskill_tidy.policies import team_class
+
+    try:
+        policy = json.loads((run / "run.json").read_text())["policy"]
+        return getattr(team_class(policy), "rules", "")
+    except (OSError, KeyError, ValueError):
+        return None
 
 
 def episodes(root: Path, setting: str, runs: dict[str, dict]) -> dict[str, list[EpisodeRecord]]:
@@ -189,6 +205,12 @@ def table(setting: str, runs: dict[str, dict], reference: dict, kind: str = "row
         if len(s.get("code_versions", [])) > 1:
             tag += " ‡"
             notes.append(f"‡ {policy}: episodes played by code versions {s['code_versions']}.")
+        if "rules_today" in s:
+            tag += " ¶"
+            notes.append(
+                f"¶ {policy}: played under the team's rules {s.get('rules') or 'as first played'!r}"
+                f", not today's {s['rules_today']!r}: re-run it to compare it with today's rows."
+            )
         if policy in ACM_NOTES:
             notes.append(f"† {policy}: {ACM_NOTES[policy]}")
         row = _our_row(s, sa_baseline(s, runs))

@@ -248,6 +248,8 @@ def evaluate(
         model = getattr(team_cls, "model_hash", lambda team: None)(members)
         if model is not None:  # a learned team: resuming with other weights is refused below
             config["model_hash"] = model
+        if getattr(team_cls, "rules", ""):  # and a team's rules changed since its first runs
+            config["rules"] = team_cls.rules
         run = RunFile(directory, config)
         images = images or record == "all"  # else the team's own observations
         jsonl = directory / "episodes.jsonl"
@@ -302,6 +304,7 @@ def _summary(
         "dataset": cfg.dataset or "default (shipped with the package)",
         "dataset_hash": dataset_hash,
         "model_hash": config.get("model_hash"),  # a learned team's weights; None otherwise
+        "rules": config.get("rules", ""),  # the team's decision rules (Team.rules)
         **run.versions(),
         "seed": cfg.seed,
         "episodes": len(records),

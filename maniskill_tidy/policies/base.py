@@ -181,6 +181,10 @@ class Team(ABC):
     # processes of their own, one per agent, where the cores allow (eval/agent_processes.py);
     # a heuristic agent's does not (its episodes got slower).
     agent_processes: ClassVar[bool] = False
+    # The name of its decision rules once they were changed on purpose after its first runs
+    # ("": as first played). Runs record it, a run made under other rules is not resumed, and
+    # the leaderboard marks a row whose rules are not today's (its records would not replay).
+    rules: ClassVar[str] = ""
 
     @abstractmethod
     def make_agent(self, name: str, public: PublicInfo, outbox: Outbox) -> Agent:

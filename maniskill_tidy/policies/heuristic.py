@@ -29,7 +29,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from maniskill_tidy.envs.actions import NO_ROOM, Action, AgentState, Targeted, move_target
+from maniskill_tidy.envs.actions import Action, AgentState, Targeted, move_target
 from maniskill_tidy.envs.robots import robot_kind
 from maniskill_tidy.knowledge import FLOOR, load_placement
 from maniskill_tidy.perception.detections import (
@@ -70,11 +70,11 @@ SAME_OBJECT = 0.6  # metres: a report this close to a known object of its type i
 
 
 class HeuristicAgent(JobChoice, Agent):
-    # A PutDown refused with "no room for X on S" gives S up for X at once: the env searched all
-    # of S, so another viewpoint of it cannot help. Off, every committed row's rule: the next
-    # viewpoint of S is tried. On: Success +0.040 [+0.010, +0.070] for heuristic-detection on
-    # val (scripts/full_surface_ab.py); to become the rule once the rows it touches are re-run.
-    FULL_SURFACE_RULE: ClassVar[bool] = False
+    # A PutDown refused with "no room for X on S" gives S up for X at once, instead of trying
+    # the next viewpoint of S (the rule before it, ``HeuristicTeam.rules`` ""): Success +0.040
+    # [+0.010, +0.070] for heuristic-detection on val (scripts/full_surface_ab.py, which turns
+    # it off for the paired "before").
+    FULL_SURFACE_RULE: ClassVar[bool] = True
 
     def __init__(self, name: str, public: PublicInfo, outbox: Outbox, communication: str) -> None:
         super().__init__(name, public, outbox)
@@ -125,12 +125,7 @@ class HeuristicAgent(JobChoice, Agent):
         if view.failed:
             self._failed(view.failed)
         if self.job is not None and self.job.issued:
-            if (
-                self.FULL_SURFACE_RULE
-                and self.job.kind == "place"
-                and view.failed.startswith(NO_ROOM)
-            ):
-                # the env searched the whole surface: no other viewpoint of it can help
+            if self.FULL_SURFACE_RULE and self.job.found_no_room(view.failed):
                 self.full.add((s.held, self.job.target))
                 self.job = None
             elif self.job.succeeded(s):
@@ -362,6 +357,7 @@ class HeuristicTeam(Team):
     observations = "depth+segmentation"  # no colour: the env skips reading it back
     perception = "ground-truth segmentation + depth, open3d semantic map"
     threadsafe_agents = True
+    rules = "full-surface"  # HeuristicAgent.FULL_SURFACE_RULE, from 2026-12-01
 
     def make_agent(self, name: str, public: PublicInfo, outbox: Outbox) -> Agent:
         return HeuristicAgent(name, public, outbox, self.communication)

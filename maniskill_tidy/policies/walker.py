@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from maniskill_tidy.envs.actions import HORIZON_RANGE, STEP, Action, AgentState
+from maniskill_tidy.envs.actions import HORIZON_RANGE, NO_ROOM, STEP, Action, AgentState
 from maniskill_tidy.policies.base import Label, SubTask
 from maniskill_tidy.policies.navigation import (
     Cell,
@@ -126,6 +126,11 @@ class Job:
             path = [agent.cell]
         ope = OPERATION.get(self.kind, "NoAction")
         return self.subtask, subgoal(agent, path, goal.rotation, ope, self.kind == "park")
+
+    def found_no_room(self, failed: str) -> bool:
+        """Whether the PutDown issued last step was refused for want of room: the env searched
+        the whole surface (``free_spot``), so no other viewpoint of it can help."""
+        return self.kind == "place" and failed.startswith(NO_ROOM)
 
     def succeeded(self, agent: AgentState) -> bool:
         """Whether the operation issued last step worked; if not, the next viewpoint is tried."""
