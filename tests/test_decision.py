@@ -24,6 +24,7 @@ from maniskill_tidy.models.decision import (
     goal_maps,
     suspects,
 )
+from maniskill_tidy.policies import team_class
 from maniskill_tidy.policies.agent_config import AgentConfig, TrainSettings
 from maniskill_tidy.policies.base import OPERATIONS
 from maniskill_tidy.training.decision_data import (
@@ -80,6 +81,7 @@ def test_demos_resume_and_refuse_another_configuration(demos, small_dataset):
     shards = [p for p in before if p.startswith("house_")]
     assert all((folder / p).stat().st_mtime_ns == before[p] for p in shards)  # not rendered again
     assert m["demos_hash"] == json.loads((folder / "manifest.json").read_text())["demos_hash"]
+    assert m["teacher_rules"] == getattr(team_class(DEMOS.teacher), "rules", "")
     with pytest.raises(ValueError, match="starts"):
         build_demo_features(demos, str(small_dataset), replace(DEMOS, starts=2), progress=False)
     with pytest.raises(ValueError, match="teacher"):  # one teacher per folder
@@ -92,6 +94,19 @@ def test_demos_resume_and_refuse_another_configuration(demos, small_dataset):
         build_demo_features(
             demos, str(small_dataset), replace(DEMOS, env="HeteroTidy-v2"), progress=False
         )
+
+
+def test_a_folder_played_under_a_teachers_first_rules_takes_no_shards_under_new_ones(tmp_path):
+    """Shards of a teacher whose rules changed (``Team.rules``) never mix with its old ones: a
+    folder made before the field was played under the first rules."""
+    from maniskill_tidy.training.house_jobs import check_same_config
+
+    manifest = tmp_path / "manifest.json"
+    manifest.write_text(json.dumps({"teacher": "heuristic-detection", "starts": 1}))
+    first = {"teacher": "heuristic-detection", "starts": 1, "teacher_rules": ""}
+    check_same_config(manifest, first)
+    with pytest.raises(ValueError, match=r"other settings \(teacher_rules\)"):
+        check_same_config(manifest, {**first, "teacher_rules": "full-surface"})
 
 
 def test_demos_hash_names_the_data_not_how_long_it_took(demos, tmp_path):
@@ -119,6 +134,7 @@ def test_a_camera_only_team_can_teach(small_dataset, tmp_path):
     cfg = replace(DEMOS, teacher="heuristic-none")
     m = build_demo_features(tmp_path, str(small_dataset), cfg, progress=False)
     assert m["teacher"] == "heuristic-none" and m["trajectories"] == 1
+    assert m["teacher_rules"] == "full-surface"  # the rules its labels were played under
     d = load_demo_features(tmp_path / "setting_I" / "train")
     assert (d["kind"] == 0).any(), "it searches before it knows of a misplaced object"
     picks = d["action"] == int(Action.PickUp)

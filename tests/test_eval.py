@@ -71,16 +71,20 @@ def test_paired_differences_use_only_the_episodes_both_runs_played():
     b = [replace(rec("Single", 4, 1, 2, 300, 0), episode=f"e{i}") for i in range(6)]
     a = [replace(r, reasonable=3, found=4, failed_actions=i) if i < 2 else r
          for i, r in enumerate(b)]  # fmt: skip
+    a[2] = replace(a[2], length=250, comm=30)  # shorter, but talks more
     a.append(replace(b[0], episode="only-in-a", reasonable=4, success=True, failed_actions=50))
     d = paired_difference(a, b)
     assert d["episodes"] == 6
     # totals count only the shared episodes: "only-in-a" adds neither its 4 objects nor 50 fails
     totals_a = {"placed": 2 * 3 + 4 * 1, "misplaced": 24, "failed_per_episode": 1 / 6,
-                "agent_steps_per_episode": 900}  # fmt: skip
+                "agent_steps_per_episode": (5 * 300 + 250) * 3 / 6}  # fmt: skip
     assert d["totals"]["A"] == totals_a
     assert d["totals"]["B"]["placed"] == 6 and d["totals"]["B"]["failed_per_episode"] == 0
     assert d["%PS"]["difference"] == pytest.approx(2 * (3 - 1) / 4 / 6)
     assert (d["%PS"]["better"], d["%PS"]["worse"]) == (2, 0)
+    assert d["#PL"]["difference"] == pytest.approx(-50 / 6)
+    assert (d["#PL"]["better"], d["#PL"]["worse"]) == (1, 0)  # fewer steps is better
+    assert (d["ACm"]["better"], d["ACm"]["worse"]) == (0, 1)  # more messages is worse
     assert d["%FM"]["difference"] == pytest.approx(2 * (4 - 2) / 4 / 6)
     assert d["Success"]["difference"] == 0 and d["Success"]["ci95"] == [0.0, 0.0]
     lo, hi = d["%PS"]["ci95"]

@@ -21,6 +21,7 @@ import numpy as np
 
 SPLITS = ("Single", "Cross", "All")
 METRICS = ("Success", "%PS", "%FM", "#PL", "ACm")
+LOWER_IS_BETTER = ("#PL", "ACm")  # fewer steps; fewer messages (the paper's cost)
 BOOTSTRAP = 2000  # resamples for the confidence intervals
 BOOTSTRAP_SEED = 0
 
@@ -106,7 +107,7 @@ def run_totals(records: list[EpisodeRecord]) -> dict:
 def paired_difference(a: list[EpisodeRecord], b: list[EpisodeRecord]) -> dict:
     """Per metric, the mean of A - B over the episodes both runs played, with a 95 % interval
     from resampling those episodes (the pair kept together) and how many episodes A did better
-    or worse on. Pairing removes the spread between episodes, which dominates the intervals of
+    or worse on (fewer is better for #PL and ACm). Pairing removes the spread between episodes, which dominates the intervals of
     two separate means on tens of episodes."""
     by_id = {r.episode: r for r in b}
     shared = [r.episode for r in a if r.episode in by_id]
@@ -118,8 +119,9 @@ def paired_difference(a: list[EpisodeRecord], b: list[EpisodeRecord]) -> dict:
     out: dict = {"episodes": len(shared), "totals": {"A": run_totals(ra), "B": run_totals(rb)}}
     for m in METRICS:
         d = va[m] - vb[m]
+        gain = -d if m in LOWER_IS_BETTER else d  # which way "A better" counts
         out[m] = {"difference": float(d.mean()), "ci95": bootstrap_ci(d),
-                  "better": int((d > 0).sum()), "worse": int((d < 0).sum())}  # fmt: skip
+                  "better": int((gain > 0).sum()), "worse": int((gain < 0).sum())}  # fmt: skip
     return out
 
 

@@ -303,9 +303,9 @@ def build_demo_features(
     teachers = sorted(set(POLICIES) - {"hangrcom", "random"})
     if cfg.teacher not in teachers:
         raise ValueError(f"unknown teacher {cfg.teacher!r}; expected one of {teachers}")
-    if cfg.student is not None:
-        from maniskill_tidy.policies import team_class
+    from maniskill_tidy.policies import team_class
 
+    if cfg.student is not None:
         student = team_class(cfg.student)  # an unknown name or config fails here, in one line
         why = getattr(student, "missing_model", lambda team: None)(parse_team(env_setting(cfg)))
         if why:
@@ -319,6 +319,7 @@ def build_demo_features(
         del want["student"]
     if cfg.env == "HeteroTidy-v1":  # and those made before v2 existed
         del want["env"]
+    want["teacher_rules"] = getattr(team_class(cfg.teacher), "rules", "")  # its labels' rules
     check_same_config(directory / "manifest.json", want)
     directory.mkdir(parents=True, exist_ok=True)
     jobs = [

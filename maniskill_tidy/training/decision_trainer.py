@@ -181,7 +181,7 @@ def _check(cfg: AgentConfig, config: Path, setting: str) -> list[Path]:
 
 
 DEMO_FIELDS = ("demos_hash", "teacher", "trajectories", "rows", "teacher_success", "seconds",
-               "starts", "tasks", "student")  # fmt: skip
+               "starts", "tasks", "student", "teacher_rules")  # fmt: skip
 
 
 def _card(cfg, config, setting, model, settings, manifests, train, val, state) -> dict:

@@ -80,8 +80,9 @@ def shards_digest(directory: Path, pattern: str) -> str:
 
 # What a key was before manifests recorded it: folders made before v2 existed are v1's, and
 # v1 folders leave the key out still, so that their manifests read as before; memory folders
-# made before MemoryConfig.explore had one explore candidate.
-UNRECORDED = {"env": "HeteroTidy-v1", "explore": 1}
+# made before MemoryConfig.explore had one explore candidate; folders made before
+# ``Team.rules`` were played by a teacher under its first rules.
+UNRECORDED = {"env": "HeteroTidy-v1", "explore": 1, "teacher_rules": ""}
 
 
 def check_same_config(manifest: Path, want: dict) -> None:

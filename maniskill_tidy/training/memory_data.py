@@ -27,6 +27,7 @@ from tqdm import tqdm
 from maniskill_tidy.common.files import write_atomic
 from maniskill_tidy.envs.episodes import EpisodeSet
 from maniskill_tidy.policies.agent_config import MemoryConfig
+from maniskill_tidy.policies.memory import MemoryTeam
 from maniskill_tidy.training.decision_data import DemoConfig, select_episodes
 from maniskill_tidy.training.house_jobs import (
     check_same_config,
@@ -98,6 +99,8 @@ def build_memory_data(
                                                                 "tasks", "houses")}  # fmt: skip
     want = {"format_version": FORMAT_VERSION, "dataset_hash": episodes.dataset_hash,
             "teacher": cfg.teacher, "env": cfg.env, "explore": cfg.explore, **chosen}  # fmt: skip
+    if MemoryTeam.rules:  # the heuristic agent's rules its choices were played under
+        want["teacher_rules"] = MemoryTeam.rules
     check_same_config(directory / "manifest.json", want)
     directory.mkdir(parents=True, exist_ok=True)
     jobs = [(h, idx, str(directory / f"{h}.npz")) for h, idx in by_house.items()
