@@ -107,8 +107,8 @@ def run_totals(records: list[EpisodeRecord]) -> dict:
 def paired_difference(a: list[EpisodeRecord], b: list[EpisodeRecord]) -> dict:
     """Per metric, the mean of A - B over the episodes both runs played, with a 95 % interval
     from resampling those episodes (the pair kept together) and how many episodes A did better
-    or worse on (fewer is better for #PL and ACm). Pairing removes the spread between episodes, which dominates the intervals of
-    two separate means on tens of episodes."""
+    or worse on (fewer is better for #PL and ACm). Pairing removes the spread between
+    episodes, which dominates the intervals of two separate means on tens of episodes."""
     by_id = {r.episode: r for r in b}
     shared = [r.episode for r in a if r.episode in by_id]
     if not shared:
