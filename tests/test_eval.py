@@ -18,7 +18,6 @@ from maniskill_tidy.eval.metrics import EpisodeRecord, ces, summarize
 from maniskill_tidy.eval.paper_tables import extract
 from maniskill_tidy.eval.runner import (
     RunConfig,
-    RunFile,
     evaluate,
     exclusive,
     read_records,
@@ -285,7 +284,9 @@ def test_a_row_played_under_a_teams_earlier_rules_is_marked_and_not_resumed(tmp_
     """A team whose rules changed on purpose (``Team.rules``): its old rows are marked on the
     leaderboard until re-run, and an old run folder is not resumed under the new rules."""
     from maniskill_tidy.policies import team_class
+    from maniskill_tidy.policies.heuristic import HeuristicAgent
 
+    assert HeuristicAgent.FULL_SURFACE_RULE  # the default that "full-surface" names
     assert team_class("heuristic-none").rules == "full-surface"
     assert team_class("agents/memory.yaml").rules == "full-surface"  # the same agent
     assert team_class("hangrcom").rules == "" and not hasattr(team_class("expert"), "rules")
@@ -301,12 +302,19 @@ def test_a_row_played_under_a_teams_earlier_rules_is_marked_and_not_resumed(tmp_
     assert marked == {"**heuristic-none** ¶"}
     assert "¶ heuristic-none: played under the team's rules 'as first played', not today's " \
         "'full-surface'" in md  # fmt: skip
-    old = tmp_path / "old"
-    old.mkdir()
-    (old / "run.json").write_text(json.dumps({"policy": "heuristic-none", "seed": 0}))
+
+    cfg = RunConfig("heuristic-none", "I", "test", None, 1)
+    summary = evaluate(cfg, tmp_path / "out", workers=1, progress=False)
+    directory = run_dir(tmp_path / "out", cfg)
+    run = json.loads((directory / "run.json").read_text())
+    assert run["rules"] == summary["rules"] == "full-surface"
+    assert evaluate(cfg, tmp_path / "out", workers=1, progress=False)["episodes"] == 1  # resumed
+    del run["rules"]  # as a run made before the rule
+    (directory / "run.json").write_text(json.dumps(run))
+    lines = (directory / "episodes.jsonl").read_text()
     with pytest.raises(ValueError, match="other arguments .'rules': .None, 'full-surface'"):
-        RunFile(old, {"policy": "heuristic-none", "seed": 0, "rules": "full-surface"})
-    RunFile(old, {"policy": "heuristic-none", "seed": 0})  # the same rules: resumed
+        evaluate(cfg, tmp_path / "out", workers=1, progress=False)
+    assert (directory / "episodes.jsonl").read_text() == lines
 
 
 def test_paper_figures_whose_all_lies_outside_single_and_cross_are_flagged():

@@ -42,6 +42,7 @@ from maniskill_tidy.models.checkpoints import (
 )
 from maniskill_tidy.models.memory_pointer import KindBias, MemoryPointer
 from maniskill_tidy.policies.agent_config import MemoryConfig
+from maniskill_tidy.policies.memory import MemoryTeam
 
 INPUTS = ("kind", "type", "rest", "numeric", "context")
 _worker: dict = {}
@@ -263,8 +264,11 @@ def start_stage(
         p.requires_grad_(True)
     digest = state_digest([cloned.state_dict()])
     same = {k: v for k, v in settings.items() if k != "iterations"}
-    key = json.dumps({section: same, "cloned": digest, "teacher": cfg.teacher,
-                      "env": cfg.env, "dataset": cfg.dataset})  # fmt: skip
+    key = {section: same, "cloned": digest, "teacher": cfg.teacher, "env": cfg.env,
+           "dataset": cfg.dataset}  # fmt: skip
+    if MemoryTeam.rules:  # rounds played under other rules are not resumed
+        key["rules"] = MemoryTeam.rules
+    key = json.dumps(key)
     return Stage(work, train_n, val_indices, cloned, policy, digest, key)
 
 

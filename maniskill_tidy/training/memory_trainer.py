@@ -185,6 +185,7 @@ def train_memory(config: Path, setting: str, progress: bool = True) -> dict:
 def closed_loop(cfg: MemoryConfig, config: Path, setting: str, progress: bool) -> dict:
     """The first ``val_episodes`` val episodes played by the trained team and its teacher."""
     from maniskill_tidy.eval.runner import RunConfig, evaluate
+    from maniskill_tidy.policies import team_class
 
     if cfg.val_episodes < 1:
         return {}
@@ -192,11 +193,12 @@ def closed_loop(cfg: MemoryConfig, config: Path, setting: str, progress: bool) -
     for who, policy in (("student", str(config)), ("teacher", cfg.teacher)):
         run = RunConfig(policy, setting, "val", cfg.dataset, episodes=cfg.val_episodes,
                         env=cfg.env)  # fmt: skip
+        team = team_class(policy)
         where = Path(cfg.work) / f"setting_{setting}" / "closed_loop" / who
-        if who == "student":  # a retrained pointer is a new run, not a resumed one
-            from maniskill_tidy.policies import team_class
-
-            where = where / team_class(policy).model_hash(SETTINGS[setting])
+        if team.rules:  # a run under other rules is a new run, not a resumed one
+            where = where / team.rules
+        if who == "student":  # and so is a retrained pointer's
+            where = where / team.model_hash(SETTINGS[setting])
         summary = evaluate(run, where, workers=cfg.workers, progress=progress)
         m = summary["metrics"]["All"]
         out[who] = {k: m[k] for k in ("Success", "%PS", "%FM", "#PL", "ACm")}
