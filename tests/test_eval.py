@@ -303,17 +303,18 @@ def test_a_row_played_under_a_teams_earlier_rules_is_marked_and_not_resumed(tmp_
     assert "¶ heuristic-none: played under the team's rules 'as first played', not today's " \
         "'full-surface'" in md  # fmt: skip
 
-    cfg = RunConfig("heuristic-none", "I", "test", None, 1)
-    summary = evaluate(cfg, tmp_path / "out", workers=1, progress=False)
+    # two episodes on two workers: a renderer made in pytest's own process crashes it later
+    cfg = RunConfig("heuristic-none", "I", "test", None, 2)
+    summary = evaluate(cfg, tmp_path / "out", workers=2, progress=False)
     directory = run_dir(tmp_path / "out", cfg)
     run = json.loads((directory / "run.json").read_text())
     assert run["rules"] == summary["rules"] == "full-surface"
-    assert evaluate(cfg, tmp_path / "out", workers=1, progress=False)["episodes"] == 1  # resumed
+    assert evaluate(cfg, tmp_path / "out", workers=2, progress=False)["episodes"] == 2  # resumed
     del run["rules"]  # as a run made before the rule
     (directory / "run.json").write_text(json.dumps(run))
     lines = (directory / "episodes.jsonl").read_text()
     with pytest.raises(ValueError, match="other arguments .'rules': .None, 'full-surface'"):
-        evaluate(cfg, tmp_path / "out", workers=1, progress=False)
+        evaluate(cfg, tmp_path / "out", workers=2, progress=False)
     assert (directory / "episodes.jsonl").read_text() == lines
 
 
