@@ -108,6 +108,19 @@ def test_a_folder_played_under_a_teachers_first_rules_takes_no_shards_under_new_
         check_same_config(manifest, {**first, "teacher_rules": "full-surface"})
 
 
+def test_also_train_demonstrations_must_share_the_teachers_rules(tmp_path):
+    """also_train adds another folder's demonstrations to a config's own: labels played under
+    other rules would teach two teachers at once, so training refuses before it embeds them."""
+    from maniskill_tidy.training.decision_trainer import same_teacher_rules
+
+    new, old = {"teacher_rules": "full-surface"}, {"teacher": "heuristic-detection"}
+    same_teacher_rules(new, dict(new), tmp_path)
+    same_teacher_rules({}, old, tmp_path)  # both made under the first rules
+    with pytest.raises(ValueError, match=r"teacher rules '', the config's demonstrations under"
+                       r" 'full-surface'"):  # fmt: skip
+        same_teacher_rules(new, old, tmp_path)
+
+
 def test_demos_hash_names_the_data_not_how_long_it_took(demos, tmp_path):
     """Two builds of the same demonstrations differ only in each house's render time: they
     must share a hash (the model cards quote it as the data's identity); other data must not."""

@@ -142,6 +142,7 @@ def train_decision(config: Path, setting: str, progress: bool = True) -> dict:
     train = used(embed_split(demos_folder(cfg, setting, "train"), perception, work, progress))
     for root, folder in zip(cfg.also_train, also, strict=True):
         manifests[f"train, also {root}"] = json.loads((folder / "manifest.json").read_text())
+        same_teacher_rules(manifests["train"], manifests[f"train, also {root}"], folder)
         train = train + used(embed_split(folder, perception, work, progress))
     val = used(embed_split(demos_folder(cfg, setting, "val"), perception, work, progress))
     _seeded(settings.seed)
@@ -178,6 +179,17 @@ def _check(cfg: AgentConfig, config: Path, setting: str) -> list[Path]:
             raise FileNotFoundError(f"{config}: also_train {folder} has no demonstrations; make "
                                     "them with the config that owns them first")  # fmt: skip
     return also
+
+
+def same_teacher_rules(train: dict, also: dict, folder: Path) -> None:
+    """Refuse to add demonstrations whose labels were played under other decision rules than
+    the config's own (``Team.rules``): one model would learn two teachers. A manifest made
+    before the field was played under the first rules ("")."""
+    ours, theirs = train.get("teacher_rules", ""), also.get("teacher_rules", "")
+    if ours != theirs:
+        raise ValueError(f"also_train {folder} was played under the teacher rules {theirs!r}, "
+                         f"the config's demonstrations under {ours!r}; expected the same rules "
+                         "(delete the older folder and make it again)")  # fmt: skip
 
 
 DEMO_FIELDS = ("demos_hash", "teacher", "trajectories", "rows", "teacher_success", "seconds",
