@@ -71,6 +71,7 @@ def test_paired_differences_use_only_the_episodes_both_runs_played():
     a = [replace(r, reasonable=3, found=4, failed_actions=i) if i < 2 else r
          for i, r in enumerate(b)]  # fmt: skip
     a[2] = replace(a[2], length=250, comm=30)  # shorter, but talks more
+    a[3] = replace(a[3], seconds=99.0)  # played slower, otherwise the same record
     a.append(replace(b[0], episode="only-in-a", reasonable=4, success=True, failed_actions=50))
     d = paired_difference(a, b)
     assert d["episodes"] == 6
@@ -86,6 +87,7 @@ def test_paired_differences_use_only_the_episodes_both_runs_played():
     assert (d["ACm"]["better"], d["ACm"]["worse"]) == (0, 1)  # more messages is worse
     assert d["%FM"]["difference"] == pytest.approx(2 * (4 - 2) / 4 / 6)
     assert d["Success"]["difference"] == 0 and d["Success"]["ci95"] == [0.0, 0.0]
+    assert d["same_success"] == 6 and d["identical"] == 3  # a[0..2] differ; wall time does not
     lo, hi = d["%PS"]["ci95"]
     assert 0 <= lo < d["%PS"]["difference"] < hi
     with pytest.raises(ValueError, match="no episode in common"):

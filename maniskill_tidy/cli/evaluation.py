@@ -92,6 +92,8 @@ def _compare(args: argparse.Namespace) -> int:
         placed = f"{t['placed']} / {t['misplaced']}"
         failed = f"{t['failed_per_episode']:.1f} of {t['agent_steps_per_episode']:.0f}"
         print(f"{side:>8} {placed:>14} {failed:>27}")
+    print(f"same Success on {d['same_success']} of {d['episodes']} episodes; "
+          f"{d['identical']} records identical (all but wall time)")  # fmt: skip
     return 0
 
 

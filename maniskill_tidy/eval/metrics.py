@@ -15,7 +15,7 @@ records always give the same interval).
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
@@ -104,6 +104,12 @@ def run_totals(records: list[EpisodeRecord]) -> dict:
     }
 
 
+def same_record(a: EpisodeRecord, b: EpisodeRecord) -> bool:
+    """Two plays of one episode that agree in everything but their wall time: how close a
+    student plays to its teacher, or a refactor to the code before it."""
+    return replace(a, seconds=b.seconds) == b
+
+
 def paired_difference(a: list[EpisodeRecord], b: list[EpisodeRecord]) -> dict:
     """Per metric, the mean of A - B over the episodes both runs played, with a 95 % interval
     from resampling those episodes (the pair kept together) and how many episodes A did better
@@ -116,7 +122,10 @@ def paired_difference(a: list[EpisodeRecord], b: list[EpisodeRecord]) -> dict:
     mine = {r.episode: r for r in a}
     ra, rb = [mine[e] for e in shared], [by_id[e] for e in shared]
     va, vb = per_episode(ra), per_episode(rb)
-    out: dict = {"episodes": len(shared), "totals": {"A": run_totals(ra), "B": run_totals(rb)}}
+    pairs = list(zip(ra, rb, strict=True))
+    out: dict = {"episodes": len(shared), "totals": {"A": run_totals(ra), "B": run_totals(rb)},
+                 "same_success": sum(x.success == y.success for x, y in pairs),
+                 "identical": sum(same_record(x, y) for x, y in pairs)}  # fmt: skip
     for m in METRICS:
         d = va[m] - vb[m]
         gain = -d if m in LOWER_IS_BETTER else d  # which way "A better" counts
