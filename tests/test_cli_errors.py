@@ -239,9 +239,11 @@ def test_compare_prints_objects_placed_and_failed_actions_of_both_runs(tmp_path)
         (tmp_path / name / "episodes.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
     p = cli("compare", str(tmp_path / "a"), str(tmp_path / "b"))
     assert p.returncode == 0, p.stderr
-    totals = {ln.split()[0]: ln.split()[1:] for ln in p.stdout.splitlines()[-2:]}
+    lines = p.stdout.splitlines()
+    totals = {ln.split()[0]: ln.split()[1:] for ln in lines[-3:-1]}  # the run table's two rows
     assert totals["A"] == ["3", "/", "4", "5.0", "of", "30"]
     assert totals["B"] == ["1", "/", "4", "0.5", "of", "30"]
+    assert lines[-1] == "same Success on 1 of 2 episodes; 0 records identical (all but wall time)"
 
 
 @pytest.mark.parametrize("card", ["with", "without"])

@@ -42,6 +42,7 @@ from maniskill_tidy.training.decision_card import model_card, split_size
 from maniskill_tidy.training.decision_data import DemoConfig, build_demo_features
 from maniskill_tidy.training.decision_features import Rows, embed_split, used_input
 from maniskill_tidy.training.decision_metrics import bc_loss, evaluate, selection_score
+from maniskill_tidy.training.house_jobs import UNRECORDED
 
 # 5: the per-type misplaced probabilities (models.decision.suspects)
 
@@ -184,8 +185,9 @@ def _check(cfg: AgentConfig, config: Path, setting: str) -> list[Path]:
 def same_teacher_rules(train: dict, also: dict, folder: Path) -> None:
     """Refuse to add demonstrations whose labels were played under other decision rules than
     the config's own (``Team.rules``): one model would learn two teachers. A manifest made
-    before the field was played under the first rules ("")."""
-    ours, theirs = train.get("teacher_rules", ""), also.get("teacher_rules", "")
+    before the field reads as ``check_same_config`` reads it (``UNRECORDED``)."""
+    first = UNRECORDED["teacher_rules"]
+    ours, theirs = train.get("teacher_rules", first), also.get("teacher_rules", first)
     if ours != theirs:
         raise ValueError(f"also_train {folder} was played under the teacher rules {theirs!r}, "
                          f"the config's demonstrations under {ours!r}; expected the same rules "
