@@ -108,17 +108,23 @@ def test_a_folder_played_under_a_teachers_first_rules_takes_no_shards_under_new_
         check_same_config(manifest, {**first, "teacher_rules": "full-surface"})
 
 
-def test_also_train_demonstrations_must_share_the_teachers_rules(tmp_path):
+def test_also_train_demonstrations_must_share_the_teachers_rules_and_look(tmp_path):
     """also_train adds another folder's demonstrations to a config's own: labels played under
-    other rules would teach two teachers at once, so training refuses before it embeds them."""
-    from maniskill_tidy.training.decision_trainer import same_teacher_rules
+    other rules would teach two teachers at once, and another look's views would train one
+    model on two renderers, so training refuses before it embeds them."""
+    from maniskill_tidy.training.decision_trainer import same_demo_conditions
 
     new, old = {"teacher_rules": "full-surface"}, {"teacher": "heuristic-detection"}
-    same_teacher_rules(new, dict(new), tmp_path)
-    same_teacher_rules({}, old, tmp_path)  # both made under the first rules
-    with pytest.raises(ValueError, match=r"teacher rules '', the config's demonstrations under"
-                       r" 'full-surface'"):  # fmt: skip
-        same_teacher_rules(new, old, tmp_path)
+    same_demo_conditions(new, dict(new), tmp_path)
+    same_demo_conditions({}, old, tmp_path)  # both made under the first rules, in v1
+    same_demo_conditions({"env": "HeteroTidy-v1"}, {}, tmp_path)  # v1 folders leave env out
+    with pytest.raises(ValueError, match=r"made with teacher_rules '', the config's "
+                       r"demonstrations with teacher_rules 'full-surface'"):  # fmt: skip
+        same_demo_conditions(new, old, tmp_path)
+    v2 = {**new, "env": "HeteroTidy-v2"}
+    with pytest.raises(ValueError, match=r"made with env 'HeteroTidy-v2', the config's "
+                       r"demonstrations with env 'HeteroTidy-v1'; expected the same"):  # fmt: skip
+        same_demo_conditions(new, v2, tmp_path)
 
 
 def test_demos_hash_names_the_data_not_how_long_it_took(demos, tmp_path):

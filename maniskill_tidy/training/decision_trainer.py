@@ -42,7 +42,7 @@ from maniskill_tidy.training.decision_card import model_card, split_size
 from maniskill_tidy.training.decision_data import DemoConfig, build_demo_features
 from maniskill_tidy.training.decision_features import Rows, embed_split, used_input
 from maniskill_tidy.training.decision_metrics import bc_loss, evaluate, selection_score
-from maniskill_tidy.training.house_jobs import UNRECORDED
+from maniskill_tidy.training.house_jobs import UNRECORDED, differing
 
 # 5: the per-type misplaced probabilities (models.decision.suspects)
 
@@ -143,7 +143,7 @@ def train_decision(config: Path, setting: str, progress: bool = True) -> dict:
     train = used(embed_split(demos_folder(cfg, setting, "train"), perception, work, progress))
     for root, folder in zip(cfg.also_train, also, strict=True):
         manifests[f"train, also {root}"] = json.loads((folder / "manifest.json").read_text())
-        same_teacher_rules(manifests["train"], manifests[f"train, also {root}"], folder)
+        same_demo_conditions(manifests["train"], manifests[f"train, also {root}"], folder)
         train = train + used(embed_split(folder, perception, work, progress))
     val = used(embed_split(demos_folder(cfg, setting, "val"), perception, work, progress))
     _seeded(settings.seed)
@@ -182,16 +182,18 @@ def _check(cfg: AgentConfig, config: Path, setting: str) -> list[Path]:
     return also
 
 
-def same_teacher_rules(train: dict, also: dict, folder: Path) -> None:
-    """Refuse to add demonstrations whose labels were played under other decision rules than
-    the config's own (``Team.rules``): one model would learn two teachers. A manifest made
-    before the field reads as ``check_same_config`` reads it (``UNRECORDED``)."""
-    first = UNRECORDED["teacher_rules"]
-    ours, theirs = train.get("teacher_rules", first), also.get("teacher_rules", first)
-    if ours != theirs:
-        raise ValueError(f"also_train {folder} was played under the teacher rules {theirs!r}, "
-                         f"the config's demonstrations under {ours!r}; expected the same rules "
-                         "(delete the older folder and make it again)")  # fmt: skip
+def same_demo_conditions(train: dict, also: dict, folder: Path) -> None:
+    """Refuse to add demonstrations made under other conditions than the config's own: a
+    teacher under other decision rules (``Team.rules``) would teach two teachers at once, and
+    another look (``env``) would train one model on two renderers' views. A manifest made
+    before a field reads as ``check_same_config`` reads it (``UNRECORDED``)."""
+    differ = differing(train, also, UNRECORDED)
+    theirs, ours = (", ".join(f"{k} {m.get(k, UNRECORDED[k])!r}" for k in differ)
+                    for m in (also, train))  # fmt: skip
+    if differ:
+        raise ValueError(f"also_train {folder} was made with {theirs}, the config's "
+                         f"demonstrations with {ours}; expected the same (delete the "
+                         "older folder and make it again)")  # fmt: skip
 
 
 DEMO_FIELDS = ("demos_hash", "teacher", "trajectories", "rows", "teacher_success", "seconds",

@@ -7,7 +7,7 @@ from __future__ import annotations
 import hashlib
 import json
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 
 import numpy as np
@@ -85,14 +85,18 @@ def shards_digest(directory: Path, pattern: str) -> str:
 UNRECORDED = {"env": "HeteroTidy-v1", "explore": 1, "teacher_rules": ""}
 
 
+def differing(a: dict, b: dict, keys: Iterable[str]) -> list[str]:
+    """The keys on which two manifests disagree, a key one leaves out read as ``UNRECORDED``
+    reads it."""
+    return [k for k in keys if a.get(k, UNRECORDED.get(k)) != b.get(k, UNRECORDED.get(k))]
+
+
 def check_same_config(manifest: Path, want: dict) -> None:
     """Refuse to mix shards made with two configurations in one folder."""
     if not manifest.is_file():
         return
     old = json.loads(manifest.read_text())
-    defaults = UNRECORDED
-    keys = [*want, *(k for k in defaults if k not in want)]
-    differ = [k for k in keys if old.get(k, defaults.get(k)) != want.get(k, defaults.get(k))]
+    differ = differing(old, want, [*want, *(k for k in UNRECORDED if k not in want)])
     if differ:
         raise ValueError(
             f"{manifest.parent} holds shards built with other settings ({', '.join(differ)}); "
