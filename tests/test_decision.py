@@ -659,3 +659,62 @@ def test_each_variants_runs_line_says_what_it_leaves_out():
     assert "low-level (no sub-tasks) decision" in line["wo_hierdec"]
     assert line["wo_misobjdec"].endswith("without misplaced-object detector")
     assert "agents/perception/no-knowledge" in line["wo_know"]
+
+
+# ------------------------------------------------------------------- sub-goal steps (issue 48)
+def test_every_kth_row_keeps_each_row_once_in_its_phase(rows):
+    train, _ = rows
+    k = 4
+    sub = train.every(k)
+    assert train.every(1) is train
+    assert sub.index.shape[1] == -(-train.index.shape[1] // k)
+    kept = sub.index[sub.index >= 0]
+    assert sorted(kept.tolist()) == sorted(train.index[train.index >= 0].tolist())
+    e = 0  # the first episode's phases follow each other: phase p holds steps p, p + k, ...
+    for p in range(k):
+        assert torch.equal(sub.index[p, : len(train.index[e, p::k])], train.index[e, p::k])
+    xs, present, ys = sub.batch(np.array([1]))  # prev_task is the previous sub-goal step's
+    task = torch.stack([ys[0][key] for key in ("kind", "object", "receptacle", "room")], -1)
+    assert torch.equal(xs[0]["prev_task"][0, 1:], task[0, :-1])
+
+
+def test_agents_deciding_every_4_steps_run_their_models_and_exchange_only_then(tmp_path):
+    from maniskill_tidy.eval.episode import play_episode
+    from maniskill_tidy.eval.runner import RunConfig, make_env
+    from maniskill_tidy.models.decision import StateExtractor
+    from maniskill_tidy.policies import make_team
+    from maniskill_tidy.policies.learned import learned_team_class
+
+    config = tmp_path / "every4.yaml"
+    config.write_text(
+        f"base: {Path('agents/hangrcom.yaml').resolve()}\n"
+        "name: every4-test\nact: {decide_every: 4}\n"
+    )
+    team = learned_team_class(config)()
+    team.agent_processes = False  # count the calls in this process
+    steps: list[int] = []
+    real = StateExtractor.forward
+
+    def counted(self, *args, **kwargs):  # F_s: the first model an agent runs to decide
+        steps.append(1)
+        return real(self, *args, **kwargs)
+
+    env = make_env(RunConfig("hangrcom", "I", "test", None, 1))
+    env.unwrapped.max_steps = 12
+    try:
+        StateExtractor.forward = counted
+        every4 = play_episode(env, team, 0, 0, [Legal()])
+        StateExtractor.forward = real
+        every1 = play_episode(env, make_team("hangrcom"), 0, 0, [Legal()])
+    finally:
+        StateExtractor.forward = real
+        env.close()
+    assert len(steps) == 3 * 3  # 3 agents at steps 0, 4 and 8 of 12
+    assert 0 < every4.comm < every1.comm / 2  # HanGrCom's vectors cross only at those steps
+
+
+def test_a_config_refuses_a_cadence_that_is_not_a_positive_integer(tmp_path):
+    config = tmp_path / "bad.yaml"
+    config.write_text(f"base: {Path('agents/hangrcom.yaml').resolve()}\nact: {{decide_every: 0}}\n")
+    with pytest.raises(ValueError, match="act decide_every 0: expected an integer >= 1"):
+        AgentConfig.load(config).acting()

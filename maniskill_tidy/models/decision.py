@@ -91,6 +91,11 @@ class DecisionConfig:
     hierarchical: bool = True
     mu: float = MU
     delta: float = DELTA
+    # A sub-goal step every k env steps (the paper's "at each sub-goal step", Section 5): the
+    # agents run the perception model, F_s, HanGrCom and F_a / F_g only then, and pursue the
+    # sub-goal in between; the LSTMs are trained on every k-th row of the demonstrations.
+    # 1 (the shipped models): every env step is a sub-goal step.
+    decide_every: int = 1
 
 
 @lru_cache(maxsize=1)

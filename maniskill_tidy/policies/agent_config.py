@@ -52,6 +52,10 @@ class ActSettings:
     # exploring, and knows which objects in view are misplaced; the same trained model decides
     # everything else. Its rows are marked privileged: it reads the task.
     oracle: bool = False
+    # Play at another cadence than the model was trained for (None: its own,
+    # DecisionConfig.decide_every): what a model trained to decide every step does when it may
+    # decide only every k steps (agents/experiments/hangrcom-every4-untrained.yaml).
+    decide_every: int | None = None
 
 
 @dataclass(frozen=True)
@@ -119,6 +123,9 @@ class AgentConfig:
             raise ValueError(
                 f"act subgoal_temperature {a.subgoal_temperature!r}: expected a number above 0"
             )
+        if a.decide_every is not None and not (isinstance(a.decide_every, int)
+                                               and a.decide_every >= 1):  # fmt: skip
+            raise ValueError(f"act decide_every {a.decide_every!r}: expected an integer >= 1")
         return a
 
     def settings(self) -> TrainSettings:

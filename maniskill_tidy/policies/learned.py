@@ -140,6 +140,15 @@ class LearnedAgent(PerceivingAgent):
         self._trace: dict = {}
         self.commit: tuple | None = None  # (cell, rotation, ope, stop, subtask, since step)
         acting = team.config.acting()
+        # a sub-goal step every `every` env steps, the whole team in step: only then does an
+        # agent run its models and exchange HanGrCom's vectors (DecisionConfig.decide_every)
+        self.every = acting.decide_every or self.decision.cfg.decide_every
+        if self.every > 1 and (acting.oracle or team.central or self.protocol == "messages"):
+            raise ValueError(
+                f"decide_every {self.every}: only for teams without an oracle, a central node "
+                "or per-step state messages (expected 1 for this config)"
+            )
+        self.deciding = True  # this step is a sub-goal step
         self.ope_threshold = acting.ope_threshold
         self.temperature = acting.subgoal_temperature
         self.sampler = (
@@ -154,6 +163,11 @@ class LearnedAgent(PerceivingAgent):
 
     # ------------------------------------------------------------------ perception
     def observe(self, view: AgentView) -> None:
+        self.deciding = view.step % self.every == 0
+        if not self.deciding:  # between sub-goal steps: the map only
+            self.read(view)
+            self._trace = {}
+            return
         x = self.perceive(view)
         if self.oracle:  # it knows which objects in view are misplaced and not yet moved
             self.targets.pop(self.state.held, None)
@@ -181,6 +195,8 @@ class LearnedAgent(PerceivingAgent):
 
     # ------------------------------------------------------------------ communication
     def send(self, round: int, inbox: list[Message]) -> None:
+        if not self.deciding:
+            return
         if isinstance(self.exchange, HandshakeExchange):
             self.exchange.send(round, inbox, self.gens)
         elif self.exchange is not None:
@@ -197,6 +213,10 @@ class LearnedAgent(PerceivingAgent):
 
     # ------------------------------------------------------------------ deciding and acting
     def act(self, inbox: list[Message]) -> Action | Targeted:
+        if not self.deciding:  # pursue the sub-goal of the last sub-goal step
+            action = self._pursue()
+            self._last_op = action.action if isinstance(action, Targeted) else action
+            return action
         inn, inter = self._received(inbox)
         with torch.inference_mode():
             logits, states = self.decision.decide(
@@ -263,10 +283,18 @@ class LearnedAgent(PerceivingAgent):
             if op is not None:
                 self.commit = None
                 return op
-        if self.commit is None or self.t - self.commit[-1] >= COMMIT_STEPS:
+        if self.commit is None or self.t - self.commit[-1] >= max(COMMIT_STEPS, self.every):
             g = d.subgoal
             cell = goal_cell(s, g)
             self.commit = (cell, (s.rotation + g.drot) % 360, g.ope, g.stop, d.subtask, self.t)
+        return self._pursue()
+
+    def _pursue(self) -> Action | Targeted:
+        """A step towards the committed sub-goal; once there its operation, Stop, or a look
+        around (also what an agent does between sub-goal steps when it has none)."""
+        s = self.state
+        if self.commit is None:
+            return self.executor.look(s)
         cell, rotation, ope, stop, subtask, _ = self.commit
         goal = relative(s, cell, rotation, ope, stop)
         move = self.executor.move(s, goal, self.t)

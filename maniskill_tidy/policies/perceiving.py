@@ -42,12 +42,19 @@ class PerceivingAgent(Agent):
         self.state = AgentState(name, self.capability, (0, 0), 0)
         self.furniture = public.house.furniture_by_id()
         self.t = 0
+        self._featured = False  # the perception model has run on this step's frame
         self._last_op: Action | None = None
         self.picked_from = -1  # receptacle type the held object was picked up from
         self.p_receptacle = np.zeros(len(load_catalog().receptacles))  # where to put it
 
     def perceive(self, view: AgentView) -> dict[str, torch.Tensor]:
         """Read the frame, update the agent's own state; the perception features (1, 1, ·)."""
+        self.read(view)
+        return self.features()
+
+    def read(self, view: AgentView) -> None:
+        """Read the frame into the map and update the agent's own state, without the frozen
+        perception model (an agent that decides only at sub-goal steps runs it only then)."""
         o, s = view.obs, self.state
         self.t = view.step
         s.cell = self.public.house.navgrid.cell_of(float(o["pose"][0]), float(o["pose"][1]))
@@ -59,6 +66,12 @@ class PerceivingAgent(Agent):
             self.executor.failed(s, view.failed, self.t)
         self.failed = bool(view.failed)
         self.seg = np.asarray(o["segmentation"])
+        self._featured = False
+
+    def features(self) -> dict[str, torch.Tensor]:
+        """The frozen perception model on this step's frame: the decision's inputs (1, 1, ·),
+        and every detection's misplaced and receptacle probabilities."""
+        f = self.frame
         with torch.inference_mode():  # no autograd bookkeeping at all: the same kernels
             feats = self.perception.step_features(
                 torch.from_numpy(f.rgb[None]), torch.from_numpy(f.seen[None]),
@@ -66,6 +79,7 @@ class PerceivingAgent(Agent):
                 torch.from_numpy(f.det_type), torch.from_numpy(f.det_rest),
                 torch.from_numpy(f.det_numeric),
             )  # fmt: skip
+        self._featured = True
         self.p_detections = feats["p_detections"].numpy()
         self.p_receptacles = feats["p_receptacles"].numpy()
         x = {k: feats[k][None] for k in ("sv", "sm", "fd", "fp", "mis", "det")}
@@ -96,6 +110,8 @@ class PerceivingAgent(Agent):
         """The detected object in reach of the predicted type (else the likeliest misplaced),
         if the misplaced-object detector finds it misplaced (p >= MISPLACED)."""
         f: FrameInputs = self.frame
+        if not self._featured:  # read without the model this step: its detections now
+            self.features()
         here = np.asarray(self.public.house.navgrid.center(*self.state.cell))
         # without the detector (its ablation) any object in reach, the predicted type first
         gate = MISPLACED if self.misplaced_detector else -1.0

@@ -71,6 +71,23 @@ class Rows:
             f"{self.hash}+{other.hash}",
         )
 
+    def every(self, k: int) -> Rows:
+        """The rows of every k-th step, one episode per phase (steps p, p + k, ... for p < k):
+        what an agent that decides at a sub-goal step every k env steps sees
+        (``DecisionConfig.decide_every``), each demonstration used once."""
+        if k == 1:
+            return self
+        steps = -(-self.index.shape[1] // k)
+        phases = []
+        for p in range(k):
+            part = self.index[:, p::k]
+            out = torch.full((part.shape[0], steps, part.shape[2]), -1, dtype=torch.long)
+            out[:, : part.shape[1]] = part
+            phases.append(out)
+        index = torch.stack(phases, dim=1).flatten(0, 1)  # episode e's phases side by side
+        keep = (index >= 0).flatten(1).any(-1)  # a phase past an episode's end has no rows
+        return Rows(self.x, self.y, index[keep], f"{self.hash}/every{k}")
+
     def batch(self, episodes: np.ndarray) -> tuple[list[dict], torch.Tensor, list[dict]]:
         """Agent-wise inputs and labels (B, T, ·) of some episodes, and ``present`` (B, T, N)."""
         idx = self.index[torch.as_tensor(episodes)]

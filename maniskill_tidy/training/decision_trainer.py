@@ -146,6 +146,7 @@ def train_decision(config: Path, setting: str, progress: bool = True) -> dict:
         same_demo_conditions(manifests["train"], manifests[f"train, also {root}"], folder)
         train = train + used(embed_split(folder, perception, work, progress))
     val = used(embed_split(demos_folder(cfg, setting, "val"), perception, work, progress))
+    train, val = train.every(decision.decide_every), val.every(decision.decide_every)
     _seeded(settings.seed)
     model = TeamDecision(decision, train.index.shape[-1])
     state = fit(model, train, val, settings, work / f"{cfg.name}.ckpt", progress)
