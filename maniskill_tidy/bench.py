@@ -13,6 +13,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from tqdm import tqdm
+
 
 def calibration(n: int = 2_000_000) -> float:
     """Seconds for a fixed pure-Python loop (the same work on every machine)."""
@@ -160,7 +162,9 @@ def main(argv: list[str] | None = None) -> int:
         from maniskill_tidy.training.demos_benchmark import bench_demos
 
         teams, looks, skip, data = args.teams or TEAMS, args.looks, args.skip, args.eval_dataset
-        rows = [bench_team(team, dataset=data, env_id=v) for v in looks for team in teams]
+        jobs = [(team, v) for v in looks for team in teams]
+        rows = [bench_team(team, dataset=data, env_id=v)
+                for team, v in tqdm(jobs, desc="teams bench", unit="row")]  # fmt: skip
         workers = [] if "workers" in skip else [bench_workers(t, dataset=data) for t in teams]
         machine = None if "machine" in skip else bench_machine()
         demos = [] if "demos" in skip else [bench_demos(dataset=data, env_id=v) for v in looks]

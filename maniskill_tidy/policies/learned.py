@@ -1,12 +1,13 @@
 """The paper's learned team: perception -> F_s -> HanGrCom -> F_a -> F_g -> sub-goal executor.
 
-Each agent runs alone on its own observation (``AgentView``) and its inbox. Every env step is a
-sub-goal step: the agent reads its frame (``perception/frame_inputs.py``), runs the frozen
-perception model and its own decision model (``models/decision.py``), exchanges HanGrCom's
-vectors through the counting channel, predicts a sub-task and a sub-goal and takes the first
-action towards the sub-goal (``policies/executor.py``). Re-predicting every step is this
-project's choice (the paper does not say); every learned variant uses it, and it is why
-AvgCom counts HanGrCom's vectors per env step, as the broadcast baseline's 410 x (N - 1).
+Each agent runs alone on its own observation (``AgentView``) and its inbox. At a sub-goal step
+the agent reads its frame (``perception/frame_inputs.py``), runs the frozen perception model and
+its own decision model (``models/decision.py``), exchanges HanGrCom's vectors through the
+counting channel, predicts a sub-task and a sub-goal and takes the first action towards the
+sub-goal (``policies/executor.py``); between sub-goal steps it only reads its frame into its map
+and pursues the sub-goal. The shipped models make every env step a sub-goal step (the paper
+does not say how often; ``DecisionConfig.decide_every`` sets it), which is why AvgCom counts
+their HanGrCom vectors per env step, as the broadcast baseline's 410 x (N - 1).
 
 Communication per step: three rounds of ``policies/handshake_exchange.py`` (queries, rows of T,
 then values and inter-group vectors along the handshake's links). Every vector crosses the
