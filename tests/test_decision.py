@@ -678,7 +678,9 @@ def test_every_kth_row_keeps_each_row_once_in_its_phase(rows):
     assert torch.equal(xs[0]["prev_task"][0, 1:], task[0, :-1])
 
 
-def test_agents_deciding_every_4_steps_run_their_models_and_exchange_only_then(tmp_path):
+def test_agents_deciding_every_4_steps_run_their_models_and_exchange_only_then(
+    tmp_path, monkeypatch
+):
     from maniskill_tidy.eval.episode import play_episode
     from maniskill_tidy.eval.runner import RunConfig, make_env
     from maniskill_tidy.models.decision import StateExtractor
@@ -692,24 +694,23 @@ def test_agents_deciding_every_4_steps_run_their_models_and_exchange_only_then(t
     )
     team = learned_team_class(config)()
     team.agent_processes = False  # count the calls in this process
-    steps: list[int] = []
+    calls = []
     real = StateExtractor.forward
 
     def counted(self, *args, **kwargs):  # F_s: the first model an agent runs to decide
-        steps.append(1)
+        calls.append(self)
         return real(self, *args, **kwargs)
 
     env = make_env(RunConfig("hangrcom", "I", "test", None, 1))
     env.unwrapped.max_steps = 12
     try:
-        StateExtractor.forward = counted
-        every4 = play_episode(env, team, 0, 0, [Legal()])
-        StateExtractor.forward = real
+        with monkeypatch.context() as patch:
+            patch.setattr(StateExtractor, "forward", counted)
+            every4 = play_episode(env, team, 0, 0, [Legal()])
         every1 = play_episode(env, make_team("hangrcom"), 0, 0, [Legal()])
     finally:
-        StateExtractor.forward = real
         env.close()
-    assert len(steps) == 3 * 3  # 3 agents at steps 0, 4 and 8 of 12
+    assert len(calls) == 3 * 3  # 3 agents at steps 0, 4 and 8 of 12
     assert 0 < every4.comm < every1.comm / 2  # HanGrCom's vectors cross only at those steps
 
 
@@ -718,3 +719,7 @@ def test_a_config_refuses_a_cadence_that_is_not_a_positive_integer(tmp_path):
     config.write_text(f"base: {Path('agents/hangrcom.yaml').resolve()}\nact: {{decide_every: 0}}\n")
     with pytest.raises(ValueError, match="act decide_every 0: expected an integer >= 1"):
         AgentConfig.load(config).acting()
+    base = Path("agents/hangrcom.yaml").resolve()
+    config.write_text(f"base: {base}\nmodel: {{decide_every: 2.5}}\n")
+    with pytest.raises(ValueError, match="model decide_every 2.5: expected an integer >= 1"):
+        AgentConfig.load(config).decision()

@@ -110,10 +110,12 @@ class AgentConfig:
 
     def decision(self) -> DecisionConfig:
         catalog = load_catalog()
-        return DecisionConfig(
+        d = DecisionConfig(
             categories=len(catalog.categories), objects=len(catalog.pickupable),
             receptacles=len(catalog.receptacles), rooms=len(ROOM_TYPES), **self.model,
         )  # fmt: skip
+        _check_cadence("model", d.decide_every)
+        return d
 
     def acting(self) -> ActSettings:
         a = ActSettings(**self.act)
@@ -123,9 +125,8 @@ class AgentConfig:
             raise ValueError(
                 f"act subgoal_temperature {a.subgoal_temperature!r}: expected a number above 0"
             )
-        if a.decide_every is not None and not (isinstance(a.decide_every, int)
-                                               and a.decide_every >= 1):  # fmt: skip
-            raise ValueError(f"act decide_every {a.decide_every!r}: expected an integer >= 1")
+        if a.decide_every is not None:
+            _check_cadence("act", a.decide_every)
         return a
 
     def settings(self) -> TrainSettings:
@@ -133,6 +134,12 @@ class AgentConfig:
         if s.select not in ("loss", "accuracy"):
             raise ValueError(f"train select {s.select!r}: expected 'loss' or 'accuracy'")
         return s
+
+
+def _check_cadence(section: str, k) -> None:
+    """``decide_every`` (a sub-goal step every k env steps) must be a whole number of steps."""
+    if isinstance(k, bool) or not isinstance(k, int) or k < 1:
+        raise ValueError(f"{section} decide_every {k!r}: expected an integer >= 1")
 
 
 def read_config(path: Path, seen: tuple[Path, ...] = ()) -> dict:
