@@ -723,3 +723,31 @@ def test_a_config_refuses_a_cadence_that_is_not_a_positive_integer(tmp_path):
     config.write_text(f"base: {base}\nmodel: {{decide_every: 2.5}}\n")
     with pytest.raises(ValueError, match="model decide_every 2.5: expected an integer >= 1"):
         AgentConfig.load(config).decision()
+
+
+def test_an_agent_that_sends_between_its_sub_goal_steps_is_stopped(monkeypatch):
+    """The runner makes a step between sub-goal steps one call per agent with empty inboxes
+    (``Agent.quiet_step``), which is only what the agents would have read if nobody sends
+    then: an agent that does is an error naming it and the step, not a message lost."""
+    from maniskill_tidy.eval.episode import play_episode
+    from maniskill_tidy.eval.runner import RunConfig, make_env
+    from maniskill_tidy.policies.learned import LearnedAgent, learned_team_class
+
+    real = LearnedAgent.send
+
+    def chatty(self, round, inbox):
+        real(self, round, inbox)
+        if not self.deciding:
+            self.outbox.send([n for n in self.public.agents if n != self.name], [0.0], "chat")
+
+    monkeypatch.setattr(LearnedAgent, "send", chatty)
+    team = learned_team_class("agents/experiments/hangrcom-every4-untrained.yaml")()
+    team.agent_processes = False  # its agents in this process, where send is patched
+    env = make_env(RunConfig("hangrcom", "I", "test", None, 1))
+    env.unwrapped.max_steps = 3
+    try:
+        between = r"'chat' message at step 1, between its team's sub-goal steps \(decide_every 4"
+        with pytest.raises(RuntimeError, match=between):
+            play_episode(env, team, 0, 0)
+    finally:
+        env.close()

@@ -425,12 +425,17 @@ def _same_traces(a: tuple, b: tuple) -> None:
                     assert value == y[name][key], (name, key)
 
 
-@pytest.mark.parametrize("policy", ["heuristic-broadcast", "heuristic-central", "hangrcom"])
+@pytest.mark.parametrize(
+    "policy",
+    ["heuristic-broadcast", "heuristic-central", "hangrcom",
+     "agents/experiments/hangrcom-every4-untrained.yaml"],
+)  # fmt: skip
 def test_agents_thinking_on_threads_or_in_processes_act_as_on_one(policy, monkeypatch):
     """The runner calls a thread-safe team's agents on several threads, or in a process per
     agent (eval/agent_processes.py; a central node stays in the runner's): every action,
     label, trace (HanGrCom's T and groups) and message total is what one thread gives (no
-    agent reads another's state)."""
+    agent reads another's state). A team deciding every 4 steps plays the steps between in one
+    call per agent (``Agent.quiet_step``): the same again."""
     import gymnasium as gym
 
     from maniskill_tidy.eval import agent_processes

@@ -5,7 +5,8 @@ barely think side by side: most of an agent's step is small torch and numpy call
 it holds Python's lock. Here each agent of a team lives in a process of its own (a *host*,
 kept for the next episodes): every phase of a step (observe, each communication round, act)
 is posted to all the agents' hosts before any answer is read, so the agents think at once on
-as many cores as there are. A host answers with what its agent returned and the messages it
+as many cores as there are; a step between sub-goal steps, on which nobody sends, is one call
+(:meth:`Agent.quiet_step`). A host answers with what its agent returned and the messages it
 sent, which the runner puts on the channel in the order the agents would have sent them in
 this process. The same code on the same inputs, torch on one thread in both: the same records
 (``tests/test_teams.py`` plays a team both ways and compares every step).
@@ -175,11 +176,15 @@ def _serve(conn) -> None:
                     teams[key] = make_team(spec)
                 outbox = RecordingOutbox(name, peers, has_central)
                 agent = teams[key].make_agent(name, public, outbox)
-                result = None
+                result = agent.decide_every  # the runner plans its quiet steps by it
             elif method == "observe":
                 name, step, path, packed, failed = args
                 obs = _unpack(buffers, path, packed)
                 result = agent.observe(AgentView(name, step, obs, failed))
+            elif method == "quiet_step":
+                name, step, path, packed, failed, rounds = args
+                view = AgentView(name, step, _unpack(buffers, path, packed), failed)
+                result = (agent.quiet_step(view, rounds), agent.label(), agent.trace())
             elif method in ("send", "act"):
                 r_or_none, inbox = args
                 for m in inbox:
@@ -311,10 +316,10 @@ class RemoteAgent(Agent):
                   outbox.has_central)  # fmt: skip
 
     def post(self, method: str, *args) -> None:
-        """Start ``method`` (observe, send or act) in the host."""
-        if method == "observe":
-            (view,) = args
-            args = (view.name, view.step, *self.host.frames.pack(view.obs), view.failed)
+        """Start ``method`` (observe, send, act or quiet_step) in the host."""
+        if method in ("observe", "quiet_step"):
+            view, *rest = args
+            args = (view.name, view.step, *self.host.frames.pack(view.obs), view.failed, *rest)
         elif method == "act":
             args = (None, *args)
         self._posted = method
@@ -325,9 +330,11 @@ class RemoteAgent(Agent):
         result, sent = self.host.collect()
         for receivers, vector, kind in sent:
             self.outbox.send(receivers, vector, kind)
-        if self._posted == "observe":
+        if self._posted == "make":
+            self.decide_every = result
+        if self._posted in ("observe", "quiet_step"):
             self.host.frames.mapped()
-        if self._posted == "act":
+        if self._posted in ("act", "quiet_step"):
             result, self._label, self._trace = result
         return result
 
@@ -341,6 +348,10 @@ class RemoteAgent(Agent):
 
     def act(self, inbox: list[Message]):
         self.post("act", inbox)
+        return self.collect()
+
+    def quiet_step(self, view: AgentView, rounds: int):
+        self.post("quiet_step", view, rounds)
         return self.collect()
 
     def label(self) -> Label | None:

@@ -61,6 +61,7 @@ class Execution:
         self.t = 0
         self.pool = agent_pool() if getattr(team, "threadsafe_agents", False) else None
         self.remote = False  # agents in processes of their own (eval/agent_processes.py)
+        self.cadence = 1  # the team's sub-goal steps come every `cadence` steps (see below)
         if isinstance(team, PrivilegedTeam):
             team.reset(public, env)
             return
@@ -82,6 +83,10 @@ class Execution:
             }
         if team.central:  # the central node thinks in this process either way
             self.central_node = team.make_central(public, Outbox(self.channel, CENTRAL))
+        # the steps between sub-goal steps are quiet (no message sent or read) where the whole
+        # team keeps one cadence and no central node sends
+        cadences = {a.decide_every for a in self.agents.values()}
+        self.cadence = cadences.pop() if len(cadences) == 1 and not team.central else 1
 
     def step(self, obs: dict, info: dict) -> dict[str, AgentAction]:
         """Every active agent's action for this step."""
@@ -91,6 +96,16 @@ class Execution:
         active = [a.name for a in self.env.agents if not a.stopped]
         failed = info.get("failed", {})
         views = {n: AgentView(n, self.t, _read_only(obs[n]), failed.get(n, "")) for n in active}
+        if self.cadence > 1 and self.t % self.cadence:  # between the team's sub-goal steps
+            acts = self._each("quiet_step", {n: (views[n], self.team.rounds) for n in active})
+            if self.channel.step_messages:
+                m = self.channel.step_messages[0]
+                raise RuntimeError(
+                    f"{m.sender} sent a {m.kind!r} message at step {self.t}, between its team's "
+                    f"sub-goal steps (decide_every {self.cadence}: expected none)"
+                )
+            self.t += 1
+            return dict(zip(active, acts, strict=True))
         self._each("observe", {n: (views[n],) for n in active})
         for r in range(self.team.rounds):
             self.channel.round = r

@@ -125,12 +125,24 @@ Label = tuple[SubTask, SubGoal]
 class Agent(ABC):
     """One robot's policy. Made per episode by its team; holds only its own state."""
 
+    # It sends and reads messages only at steps that are multiples of this (its sub-goal steps,
+    # the whole team in step); on the others the runner may make its calls in one go
+    decide_every: int = 1
+
     def __init__(self, name: str, public: PublicInfo, outbox: Outbox) -> None:
         self.name, self.public, self.outbox = name, public, outbox
 
     @abstractmethod
     def observe(self, view: AgentView) -> None:
         """Take in this step's own observation (perception, memory)."""
+
+    def quiet_step(self, view: AgentView, rounds: int) -> AgentAction:
+        """A step between sub-goal steps (``decide_every``), on which no agent sends: the calls
+        the runner would make one by one, every inbox empty, as one (one message to a host)."""
+        self.observe(view)
+        for r in range(rounds):
+            self.send(r, [])
+        return self.act([])
 
     def send(self, round: int, inbox: list[Message]) -> None:  # noqa: B027  (optional hook)
         """Communication round ``round``: send through ``self.outbox`` (default: nothing)."""

@@ -143,11 +143,11 @@ class LearnedAgent(PerceivingAgent):
         acting = team.config.acting()
         # a sub-goal step every `every` env steps, the whole team in step: only then does an
         # agent run its models and exchange HanGrCom's vectors (DecisionConfig.decide_every)
-        self.every = acting.decide_every or self.decision.cfg.decide_every
-        if self.every > 1 and (acting.oracle or team.central or self.protocol == "messages"):
+        self.decide_every = acting.decide_every or self.decision.cfg.decide_every
+        if self.decide_every > 1 and (acting.oracle or team.central or self.protocol == "messages"):
             raise ValueError(
-                f"decide_every {self.every}: only for teams without an oracle, a central node "
-                "or per-step state messages (expected 1 for this config)"
+                f"decide_every {self.decide_every}: only for teams without an oracle, a central "
+                "node or per-step state messages (expected 1 for this config)"
             )
         self.deciding = True  # this step is a sub-goal step
         self.ope_threshold = acting.ope_threshold
@@ -164,7 +164,7 @@ class LearnedAgent(PerceivingAgent):
 
     # ------------------------------------------------------------------ perception
     def observe(self, view: AgentView) -> None:
-        self.deciding = view.step % self.every == 0
+        self.deciding = view.step % self.decide_every == 0
         if not self.deciding:  # between sub-goal steps: the map only
             self.read(view)
             self._trace = {}
@@ -284,7 +284,7 @@ class LearnedAgent(PerceivingAgent):
             if op is not None:
                 self.commit = None
                 return op
-        if self.commit is None or self.t - self.commit[-1] >= max(COMMIT_STEPS, self.every):
+        if self.commit is None or self.t - self.commit[-1] >= max(COMMIT_STEPS, self.decide_every):
             g = d.subgoal
             cell = goal_cell(s, g)
             self.commit = (cell, (s.rotation + g.drot) % 360, g.ope, g.stop, d.subtask, self.t)
