@@ -693,7 +693,7 @@ def test_agents_deciding_every_4_steps_run_their_models_and_exchange_only_then(
         "name: every4-test\nact: {decide_every: 4}\n"
     )
     team = learned_team_class(config)()
-    team.agent_processes = False  # count the calls in this process
+    monkeypatch.setenv("TIDY_AGENT_PROCESSES", "0")  # count the calls in this process
     calls = []
     real = StateExtractor.forward
 
@@ -716,10 +716,10 @@ def test_agents_deciding_every_4_steps_run_their_models_and_exchange_only_then(
 
 def test_a_config_refuses_a_cadence_that_is_not_a_positive_integer(tmp_path):
     config = tmp_path / "bad.yaml"
-    config.write_text(f"base: {Path('agents/hangrcom.yaml').resolve()}\nact: {{decide_every: 0}}\n")
+    base = Path("agents/hangrcom.yaml").resolve()
+    config.write_text(f"base: {base}\nact: {{decide_every: 0}}\n")
     with pytest.raises(ValueError, match="act decide_every 0: expected an integer >= 1"):
         AgentConfig.load(config).acting()
-    base = Path("agents/hangrcom.yaml").resolve()
     config.write_text(f"base: {base}\nmodel: {{decide_every: 2.5}}\n")
     with pytest.raises(ValueError, match="model decide_every 2.5: expected an integer >= 1"):
         AgentConfig.load(config).decision()
@@ -742,11 +742,11 @@ def test_an_agent_that_sends_between_its_sub_goal_steps_is_stopped(monkeypatch):
 
     monkeypatch.setattr(LearnedAgent, "send", chatty)
     team = learned_team_class("agents/experiments/hangrcom-every4-untrained.yaml")()
-    team.agent_processes = False  # its agents in this process, where send is patched
+    monkeypatch.setenv("TIDY_AGENT_PROCESSES", "0")  # its agents here, where send is patched
     env = make_env(RunConfig("hangrcom", "I", "test", None, 1))
     env.unwrapped.max_steps = 3
     try:
-        between = r"'chat' message at step 1, between its team's sub-goal steps \(decide_every 4"
+        between = r"agent_\d \(chat\).* sent at step 1, between the team's sub-goal steps"
         with pytest.raises(RuntimeError, match=between):
             play_episode(env, team, 0, 0)
     finally:

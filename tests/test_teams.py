@@ -11,7 +11,7 @@ import torch
 
 from maniskill_tidy.envs.actions import MIN_PIXELS, Action
 from maniskill_tidy.eval import runner
-from maniskill_tidy.eval.episode import play_episode
+from maniskill_tidy.eval.episode import Execution, play_episode
 from maniskill_tidy.eval.runner import RunConfig, evaluate, make_env
 from maniskill_tidy.knowledge import load_catalog, load_placement
 from maniskill_tidy.policies import POLICIES, make_team
@@ -435,7 +435,7 @@ def test_agents_thinking_on_threads_or_in_processes_act_as_on_one(policy, monkey
     agent (eval/agent_processes.py; a central node stays in the runner's): every action,
     label, trace (HanGrCom's T and groups) and message total is what one thread gives (no
     agent reads another's state). A team deciding every 4 steps plays the steps between in one
-    call per agent (``Agent.quiet_step``): the same again."""
+    call per agent (``Agent.quiet_step``): the same again, and the same as phase by phase."""
     import gymnasium as gym
 
     from maniskill_tidy.eval import agent_processes
@@ -450,11 +450,20 @@ def test_agents_thinking_on_threads_or_in_processes_act_as_on_one(policy, monkey
         made(self, *args, **kwargs)
 
     monkeypatch.setattr(agent_processes.RemoteAgent, "__init__", count)
+    built = Execution.__init__
+
+    def phase_by_phase(self, *args):  # every step's calls one by one, as without quiet steps
+        built(self, *args)
+        self.decide_every = 1
+
+    modes = [("one", "1", "0"), ("threads", "3", "0"), ("processes", "1", "1")]
+    quiet = policy.endswith(".yaml")  # a team deciding every 4 steps
     try:
-        for mode, threads, processes in (("one", "1", "0"), ("threads", "3", "0"),
-                                         ("processes", "1", "1")):  # fmt: skip
+        for mode, threads, processes in modes + [("phases", "1", "0")] * quiet:
             monkeypatch.setenv("TIDY_AGENT_THREADS", threads)
             monkeypatch.setenv("TIDY_AGENT_PROCESSES", processes)
+            if mode == "phases":
+                monkeypatch.setattr(Execution, "__init__", phase_by_phase)
             log = _Traces()
             record = play_episode(env, make_team(policy), 0, 0, [log])
             played[mode] = (dataclasses.replace(record, seconds=0.0), log.steps, log.traces)
@@ -465,6 +474,8 @@ def test_agents_thinking_on_threads_or_in_processes_act_as_on_one(policy, monkey
     assert played["one"][2] or policy != "hangrcom"  # HanGrCom reports T every step
     _same_traces(played["one"], played["threads"])
     _same_traces(played["one"], played["processes"])
+    if quiet:
+        _same_traces(played["one"], played["phases"])
 
 
 @pytest.mark.parametrize("rule", [False, True])

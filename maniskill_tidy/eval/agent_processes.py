@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from maniskill_tidy.common.parallel import THREAD_KNOBS, agent_processes_knob, agent_threads
-from maniskill_tidy.policies.base import Agent, AgentView, Label, PublicInfo
+from maniskill_tidy.policies.base import Agent, AgentAction, AgentView, Label, PublicInfo
 from maniskill_tidy.policies.channel import Message, Outbox
 
 PRELOAD = ["maniskill_tidy.policies", "maniskill_tidy.models.perception"]
@@ -346,11 +346,11 @@ class RemoteAgent(Agent):
         self.post("send", round, inbox)
         return self.collect()
 
-    def act(self, inbox: list[Message]):
+    def act(self, inbox: list[Message]) -> AgentAction:
         self.post("act", inbox)
         return self.collect()
 
-    def quiet_step(self, view: AgentView, rounds: int):
+    def quiet_step(self, view: AgentView, rounds: int) -> AgentAction:
         self.post("quiet_step", view, rounds)
         return self.collect()
 

@@ -61,7 +61,7 @@ class Execution:
         self.t = 0
         self.pool = agent_pool() if getattr(team, "threadsafe_agents", False) else None
         self.remote = False  # agents in processes of their own (eval/agent_processes.py)
-        self.cadence = 1  # the team's sub-goal steps come every `cadence` steps (see below)
+        self.decide_every = 1  # the team's sub-goal steps (see below)
         if isinstance(team, PrivilegedTeam):
             team.reset(public, env)
             return
@@ -86,7 +86,7 @@ class Execution:
         # the steps between sub-goal steps are quiet (no message sent or read) where the whole
         # team keeps one cadence and no central node sends
         cadences = {a.decide_every for a in self.agents.values()}
-        self.cadence = cadences.pop() if len(cadences) == 1 and not team.central else 1
+        self.decide_every = cadences.pop() if len(cadences) == 1 and not team.central else 1
 
     def step(self, obs: dict, info: dict) -> dict[str, AgentAction]:
         """Every active agent's action for this step."""
@@ -96,13 +96,13 @@ class Execution:
         active = [a.name for a in self.env.agents if not a.stopped]
         failed = info.get("failed", {})
         views = {n: AgentView(n, self.t, _read_only(obs[n]), failed.get(n, "")) for n in active}
-        if self.cadence > 1 and self.t % self.cadence:  # between the team's sub-goal steps
+        if self.t % self.decide_every:  # between the team's sub-goal steps
             acts = self._each("quiet_step", {n: (views[n], self.team.rounds) for n in active})
-            if self.channel.step_messages:
-                m = self.channel.step_messages[0]
+            if self.channel.step_messages:  # every sender named: the agents ran side by side
+                sent = sorted({f"{m.sender} ({m.kind})" for m in self.channel.step_messages})
                 raise RuntimeError(
-                    f"{m.sender} sent a {m.kind!r} message at step {self.t}, between its team's "
-                    f"sub-goal steps (decide_every {self.cadence}: expected none)"
+                    f"{', '.join(sent)} sent at step {self.t}, between the team's sub-goal "
+                    f"steps (decide_every {self.decide_every}: expected no message)"
                 )
             self.t += 1
             return dict(zip(active, acts, strict=True))

@@ -136,7 +136,7 @@ class AgentConfig:
         return s
 
 
-def _check_cadence(section: str, k) -> None:
+def _check_cadence(section: str, k: object) -> None:
     """``decide_every`` (a sub-goal step every k env steps) must be a whole number of steps."""
     if isinstance(k, bool) or not isinstance(k, int) or k < 1:
         raise ValueError(f"{section} decide_every {k!r}: expected an integer >= 1")

@@ -126,7 +126,8 @@ class Agent(ABC):
     """One robot's policy. Made per episode by its team; holds only its own state."""
 
     # It sends and reads messages only at steps that are multiples of this (its sub-goal steps,
-    # the whole team in step); on the others the runner may make its calls in one go
+    # the whole team in step); on the others the runner makes its calls one (quiet_step) and
+    # stops the episode if anyone sends
     decide_every: int = 1
 
     def __init__(self, name: str, public: PublicInfo, outbox: Outbox) -> None:
