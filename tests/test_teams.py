@@ -18,6 +18,7 @@ from maniskill_tidy.policies import POLICIES, make_team
 from maniskill_tidy.policies.base import (
     EXPLORE,
     OBSERVATION_KEYS,
+    PLACE,
     Agent,
     AgentView,
     CentralNode,
@@ -428,7 +429,10 @@ def _same_traces(a: tuple, b: tuple) -> None:
 @pytest.mark.parametrize(
     "policy",
     ["heuristic-broadcast", "heuristic-central", "hangrcom",
-     "agents/experiments/hangrcom-every4-untrained.yaml"],
+     # slow: four more episodes here took the default suite's one process past what lavapipe
+     # allocates (a SIGSEGV in svulkan2's DynamicDescriptorPool::allocateSet at about 390
+     # tests, under gdb); `make test-slow` runs it
+     pytest.param("agents/experiments/hangrcom-every4-untrained.yaml", marks=pytest.mark.slow)],
 )  # fmt: skip
 def test_agents_thinking_on_threads_or_in_processes_act_as_on_one(policy, monkeypatch):
     """The runner calls a thread-safe team's agents on several threads, or in a process per
@@ -509,3 +513,35 @@ def test_a_surface_without_room_is_given_up_for_that_object_only_under_the_rule(
     else:
         assert agent.job is job and after == set(targets)
         assert job.leg.goal is None and job.leg.tried == {job.leg.candidates[0].cell}  # next
+
+
+def test_between_sub_goal_steps_an_agent_does_its_operation_once_it_can(small_house_public):
+    """An agent deciding every 4 steps keeps its last sub-goal step's operation and does it on
+    a step between as soon as it can succeed (as one deciding every step would, with
+    ``ope_threshold``), without running the perception model while nothing is in reach."""
+    from maniskill_tidy.envs.actions import Targeted
+
+    public = small_house_public
+    team = make_team("agents/experiments/hangrcom-every4-untrained.yaml")
+    agent = team.make_agent("agent_2", public, Outbox(Channel(public.agents), "agent_2"))
+    assert agent.decide_every == 4 and agent.ope_threshold is not None
+    agent.deciding, agent.failed, agent.state.cell = False, False, (2, 2)
+    here = np.asarray(public.house.navgrid.center(2, 2))
+    picks = []
+
+    def perceived():
+        raise AssertionError("the perception model ran with nothing in reach")
+
+    agent.features = perceived
+    agent._pick = lambda subtask: picks.append(subtask) or Targeted(Action.PickUp, "Book_1")
+    agent._pursue = lambda: Action.MoveAhead
+    book = SubTask(PLACE, "Book")
+    agent.operation, agent.commit = ("PickUp", book), ("somewhere",)
+    agent.frame = types.SimpleNamespace(det_position=np.array([[*(here + 3.0), 0.5]]))
+    assert agent.act([]) == Action.MoveAhead and picks == []  # the book is 4 m away
+    agent.frame = types.SimpleNamespace(det_position=np.array([[*(here + 0.2), 0.5]]))
+    assert agent.act([]) == Targeted(Action.PickUp, "Book_1") and picks == [book]
+    assert agent.operation is None and agent.commit is None  # done: the next sub-goal decides
+    assert agent.act([]) == Action.MoveAhead  # not twice
+    agent.operation, agent.ope_threshold = ("PickUp", book), None
+    assert agent.act([]) == Action.MoveAhead  # without the threshold, only at sub-goal steps

@@ -23,7 +23,7 @@ from typing import ClassVar
 import numpy as np
 import torch
 
-from maniskill_tidy.envs.actions import Action, Targeted
+from maniskill_tidy.envs.actions import REACH, Action, Targeted
 from maniskill_tidy.envs.robots import robot_kind
 from maniskill_tidy.knowledge import ROOM_TYPES, load_catalog
 from maniskill_tidy.models.checkpoints import (
@@ -140,6 +140,7 @@ class LearnedAgent(PerceivingAgent):
         self._label: Label | None = None
         self._trace: dict = {}
         self.commit: tuple | None = None  # (cell, rotation, ope, stop, subtask, since step)
+        self.operation: tuple[str, SubTask] | None = None  # the last sub-goal step's
         acting = team.config.acting()
         # a sub-goal step every `every` env steps, the whole team in step: only then does an
         # agent run its models and exchange HanGrCom's vectors (DecisionConfig.decide_every)
@@ -215,7 +216,7 @@ class LearnedAgent(PerceivingAgent):
     # ------------------------------------------------------------------ deciding and acting
     def act(self, inbox: list[Message]) -> Action | Targeted:
         if not self.deciding:  # pursue the sub-goal of the last sub-goal step
-            action = self._pursue()
+            action = self._quiet_operation() or self._pursue()
             self._last_op = action.action if isinstance(action, Targeted) else action
             return action
         inn, inter = self._received(inbox)
@@ -231,6 +232,7 @@ class LearnedAgent(PerceivingAgent):
             self._last_op = action.action if isinstance(action, Targeted) else action
             return action
         d = decode(logits, self.ope_threshold, self.sampler, self.temperature)
+        self.operation = (d.subgoal.ope, d.subtask)
         self.prev_task = task_indices(logits)
         self._label = (d.subtask, d.subgoal)
         ex = self.exchange
@@ -282,13 +284,31 @@ class LearnedAgent(PerceivingAgent):
         if self.ope_threshold is not None:
             op = self._operation(d.subgoal.ope, d.subtask)
             if op is not None:
-                self.commit = None
+                self.commit = self.operation = None
                 return op
         if self.commit is None or self.t - self.commit[-1] >= max(COMMIT_STEPS, self.decide_every):
             g = d.subgoal
             cell = goal_cell(s, g)
             self.commit = (cell, (s.rotation + g.drot) % 360, g.ope, g.stop, d.subtask, self.t)
         return self._pursue()
+
+    def _quiet_operation(self) -> Targeted | Action | None:
+        """Between sub-goal steps, the last sub-goal step's operation once it can succeed: an
+        agent deciding every step would do it then (``ope_threshold``), and one deciding every
+        k steps would otherwise walk past it for up to k - 1 steps. The perception model runs
+        (for PickUp's misplaced probabilities) only when an object is in reach."""
+        if self.ope_threshold is None or self.operation is None:
+            return None
+        ope, subtask = self.operation
+        f = self.frame
+        if ope == "PickUp" and not self._featured:
+            here = np.asarray(self.public.house.navgrid.center(*self.state.cell))
+            if not (np.hypot(*(f.det_position[:, :2] - here).T) <= REACH).any():
+                return None
+        op = self._operation(ope, subtask)
+        if op is not None:
+            self.commit = self.operation = None  # done: the next sub-goal step decides anew
+        return op
 
     def _pursue(self) -> Action | Targeted:
         """A step towards the committed sub-goal; once there its operation, Stop, or a look
