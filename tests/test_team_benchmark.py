@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import pytest
 
 from maniskill_tidy.eval.team_benchmark import ActionLog, bench_team, replay
@@ -107,8 +109,11 @@ def test_the_machines_own_two_process_ratio_is_measured_and_reported(monkeypatch
                "cores_one": 1.37, "cores_two": 1.91}  # fmt: skip
     assert "this machine" in team_benchmark.report([], [workers], machine=machine)
     monkeypatch.undo()
+    # two real loops ran and timed themselves; no bound on the value: on a shared CI host a
+    # single round's lone loop was once slowed enough to give 3.19 (two cores, at most ~2)
     real = team_benchmark.bench_machine(rounds=1)
-    assert 0.3 < real["two_over_one"] < 3.0  # two real loops ran and timed themselves
+    assert math.isfinite(real["two_over_one"]) and real["two_over_one"] > 0
+    assert real["spread"] == (real["two_over_one"],) * 2
 
 
 def test_the_demos_command_is_timed_in_a_fresh_interpreter_from_its_start(monkeypatch):
