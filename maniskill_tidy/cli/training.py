@@ -79,6 +79,13 @@ def _train(args: argparse.Namespace) -> int:
 
         card = train_memory(Path(args.what), args.setting)
         loop = card.get("closed_loop", {})
+        if "links" in card:
+            v = card["val"]
+            print(f"{card['name']} Setting {args.setting}: links' val loss {v['loss']:.3f}, "
+                  f"precision {v['precision']:.3f}, recall {v['recall']:.3f} (best epoch "
+                  f"{card['best_epoch']}); closed loop on val, Success "
+                  + ", ".join(f"{who} {m['Success']:.3f}" for who, m in loop.items()))  # fmt: skip
+            return 0
         print(
             f"{card['name']} Setting {args.setting}: val accuracy {card['val']['balanced']:.3f} "
             "(mean over kinds of choice) "

@@ -231,6 +231,10 @@ class MemoryConfig:
     reinforce: dict = field(default_factory=dict)
     # or, after cloning, policy improvement from forked episodes (training/memory_forks.py)
     forks: dict = field(default_factory=dict)
+    # HanGrCom links carrying memory entries instead of the teacher's messages, with the
+    # pointer of another config's folder (policies/memory_links.py, training/memory_links.py);
+    # empty: the teacher's messages
+    links: dict = field(default_factory=dict)
     notes: str = ""
 
     TEACHERS = ("heuristic-none", "heuristic-detection", "heuristic-broadcast")
@@ -251,6 +255,20 @@ class MemoryConfig:
         "seed": 0,
         "val_every": 4,  # rounds between greedy val runs (which select the weights)
         "val_episodes": 40,
+    }
+
+    LINKS = {
+        "pointer": "agents/memory",  # the trained pointer the team plays with (its folder)
+        "entries": 4,  # memory entries a link carries at most
+        "hidden": 32,  # the summary's hidden layer
+        "key": 8,  # query and key values
+        "mu": 0.2,  # the paper's thresholds: a link where T_ij > mu ...
+        "delta": 0.8,  # ... from an agent that asks, T_ii < delta
+        "epochs": 40,
+        "batch": 256,
+        "lr": 3e-3,
+        "seed": 0,
+        "patience": 8,
     }
 
     FORKS = {
@@ -284,7 +302,8 @@ class MemoryConfig:
             extra = sorted(set(getattr(cfg, section)) - {"starts", "tasks", "houses"})
             if extra:
                 raise ValueError(f"{path}: unknown {section} keys {extra}")
-        for section, known in (("reinforce", cls.REINFORCE), ("forks", cls.FORKS)):
+        for section, known in (("reinforce", cls.REINFORCE), ("forks", cls.FORKS),
+                               ("links", cls.LINKS)):  # fmt: skip
             extra = sorted(set(getattr(cfg, section)) - set(known))
             if extra:
                 raise ValueError(f"{path}: unknown {section} keys {extra}; expected some of "
@@ -292,6 +311,9 @@ class MemoryConfig:
         if cfg.reinforce and cfg.forks:
             raise ValueError(f"{path}: both reinforce and forks; expected at most one stage "
                              "after cloning")  # fmt: skip
+        if cfg.links and (cfg.reinforce or cfg.forks):
+            raise ValueError(f"{path}: links with reinforce or forks; links train on a "
+                             "trained pointer (links.pointer), nothing else")  # fmt: skip
         if not (type(cfg.explore) is int and 1 <= cfg.explore <= cls.MAX_EXPLORE):
             raise ValueError(f"{path}: explore {cfg.explore!r}; expected a whole number from 1 "
                              f"to {cls.MAX_EXPLORE}")  # fmt: skip
@@ -303,6 +325,10 @@ class MemoryConfig:
     def forks_settings(self) -> dict:
         """The forks' settings (defaults filled in); empty when the config asks for none."""
         return {**self.FORKS, **self.forks} if self.forks else {}
+
+    def links_settings(self) -> dict:
+        """The links' settings (defaults filled in); empty when the config asks for none."""
+        return {**self.LINKS, **self.links} if self.links else {}
 
     def reinforce_settings(self) -> dict:
         """PPO's settings (defaults filled in); empty when the config asks for none."""

@@ -8,7 +8,7 @@ three communication rounds of one env step:
 1. ``attention`` (N values): the agent's row of T (softmax over the agents present), to the
    same teammates, so that every agent forms the same groups;
 2. ``value`` (val) to each teammate that links to it (asked, T_ij > mu), and ``inter`` (inv)
-   to each agent whose group attends to it most.
+   to each agent whose group attends to it most (when the agent has an inv).
 
 Then :meth:`combine` gives ``inn`` and ``int`` from what arrived, equal to
 ``models.hangrcom.hard`` on the same T.
@@ -59,9 +59,14 @@ class HandshakeExchange:
                 if other not in self.alive:
                     continue
                 if self.hs.links[j, self.i]:
-                    self.outbox.send(other, gens["val"].numpy(), "value")
-                if self.hs.inter[j] == self.i:
+                    self.outbox.send(other, self.value_for(other, gens), "value")
+                if "inv" in gens and self.hs.inter[j] == self.i:
                     self.outbox.send(other, gens["inv"].numpy(), "inter")
+
+    def value_for(self, receiver: str, gens: dict[str, torch.Tensor]) -> np.ndarray:
+        """What a link to ``receiver`` carries: the learned value vector (the object-memory
+        team's links carry memory entries instead, ``policies/memory_links.py``)."""
+        return gens["val"].numpy()
 
     def combine(
         self, inbox: list[Message], gens: dict[str, torch.Tensor]

@@ -54,6 +54,7 @@ from maniskill_tidy.policies.base import (
 from maniskill_tidy.policies.channel import CENTRAL, Message, Outbox
 from maniskill_tidy.policies.heuristic_jobs import TEAMMATE_STEPS, JobChoice, Known, Report
 from maniskill_tidy.policies.messages import (
+    State,
     decode_assignment,
     decode_crop,
     decode_state,
@@ -237,16 +238,7 @@ class HeuristicAgent(JobChoice, Agent):
         states = {m.sender: decode_state(m.vector) for m in inbox if m.kind == "state"}
         nav = self.house.navgrid
         for sender, st in states.items():
-            cell = nav.cell_of(st.pose[0], st.pose[1])
-            self.teammates[sender] = (cell, self.t)
-            if st.parking:
-                self.parked[sender] = cell
-            else:
-                self.parked.pop(sender, None)
-            if st.capability[1] and st.subtask.kind == PLACE and st.subtask.object_type:
-                self.claims[sender] = (st.subtask.object_type, cell)
-            else:
-                self.claims.pop(sender, None)
+            self._heard(sender, st)
         for m in inbox:
             if m.kind == "map" and m.sender in states:
                 cells = decode_crop(m.vector, states[m.sender].pose, nav)
@@ -255,6 +247,19 @@ class HeuristicAgent(JobChoice, Agent):
                     self._add_report(Report(object_type, xy))
             elif m.kind == "assignment":
                 self.assignment = decode_assignment(m.vector)
+
+    def _heard(self, sender: str, st: State) -> None:
+        """A teammate's state message: where it is, whether it parks, what it goes for."""
+        cell = self.house.navgrid.cell_of(st.pose[0], st.pose[1])
+        self.teammates[sender] = (cell, self.t)
+        if st.parking:
+            self.parked[sender] = cell
+        else:
+            self.parked.pop(sender, None)
+        if st.capability[1] and st.subtask.kind == PLACE and st.subtask.object_type:
+            self.claims[sender] = (st.subtask.object_type, cell)
+        else:
+            self.claims.pop(sender, None)
 
     def _add_report(self, report: Report) -> None:
         if self._matches_known(report):

@@ -209,12 +209,15 @@ def _other_candidates(saved: dict, explore: int) -> str | None:
 
 def memory_team_class(config: str | Path) -> type[MemoryTeam]:
     """A team class named after an object-memory config's ``name``; it sends its teacher's
-    messages."""
+    messages, or memory entries over HanGrCom links when the config has ``links``."""
     from maniskill_tidy.policies import POLICIES
     from maniskill_tidy.policies.learned import resolve
 
     cfg = MemoryConfig.load(resolve(config))
-    teacher = POLICIES[cfg.teacher]
-    attrs = {"name": cfg.name, "config_file": resolve(config),
-             "communication": teacher.communication}  # fmt: skip
+    attrs = {"name": cfg.name, "config_file": resolve(config)}
+    if cfg.links:  # the handshake's links carry memory entries
+        from maniskill_tidy.policies.memory_links import LinkedMemoryTeam
+
+        return type(f"MemoryTeam_{cfg.name}", (LinkedMemoryTeam,), attrs)
+    attrs["communication"] = POLICIES[cfg.teacher].communication
     return type(f"MemoryTeam_{cfg.name}", (MemoryTeam,), attrs)

@@ -73,6 +73,10 @@ def train_memory(config: Path, setting: str, progress: bool = True) -> dict:
     if setting not in SETTINGS:
         raise ValueError(f"unknown setting {setting!r}; expected one of {sorted(SETTINGS)}")
     cfg = MemoryConfig.load(config)
+    if cfg.links:  # a trained pointer, learned links carrying memory entries
+        from maniskill_tidy.training.memory_links import train_links
+
+        return train_links(cfg, config, setting, progress)
     s = cfg.settings()
     train_dir = build_memory_data(config, setting, "train", progress)
     val_dir = build_memory_data(config, setting, "val", progress)
