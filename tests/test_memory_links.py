@@ -174,6 +174,9 @@ def test_links_train_on_a_copied_pointer_and_resume(small_dataset, tmp_path, poi
     assert train["agent_steps"] > 100 and 0 < train["useful_share"] < 1
     assert 0 <= card["val"]["precision"] <= 1 and card["epochs"] <= 3
     assert card["closed_loop"]["student"]["episodes"] == 1
+    folder = tmp_path / "l" / "setting_I"
+    assert (folder / "curve.png").read_bytes()[:4] == b"\x89PNG"
+    assert "memory entries over HanGrCom links" in (folder / "MODEL_CARD.md").read_text()
     saved = torch.load(tmp_path / "l" / "setting_I" / "model.pt", weights_only=False)
     cloned = torch.load(pointer / "setting_I" / "model.pt", weights_only=False)
     assert all(torch.equal(saved["state"][k], cloned["state"][k]) for k in cloned["state"])

@@ -258,7 +258,31 @@ def train_links(cfg: MemoryConfig, config: Path, setting: str, progress: bool = 
     card["code_version"] = code_version()
     write_atomic(folder / "card.json", json.dumps(card, indent=1).encode())
     write_atomic(folder / "MODEL_CARD.md", links_card(card).encode())
+    plot_links_curve(card, folder / "curve.png")
     return card
+
+
+def plot_links_curve(card: dict, out: Path) -> Path:
+    """Loss, and the hard handshake's links against the val labels, per epoch."""
+    import matplotlib.pyplot as plt
+
+    from maniskill_tidy.common.plotting import save_figure
+
+    curve = card["curve"]
+    epochs = [c["epoch"] for c in curve]
+    fig, (a, b) = plt.subplots(1, 2, figsize=(8, 3))
+    a.plot(epochs, [c["train_loss"] for c in curve], label="train")
+    a.plot(epochs, [c["val_loss"] for c in curve], label="val")
+    a.set(xlabel="epoch", ylabel="cross-entropy", title="rows of T against the labels")
+    a.legend()
+    for key, label in (("val_precision", "precision"), ("val_recall", "recall"),
+                       ("val_asks", "agent steps that ask")):  # fmt: skip
+        b.plot(epochs, [c[key] for c in curve], label=label)
+    b.axvline(card["best_epoch"], color="grey", ls=":")
+    b.set(xlabel="epoch", ylim=(0, 1), title="val: the hard handshake's links")
+    b.legend()
+    fig.suptitle(f"{card['name']}, Setting {card['setting']}")
+    return save_figure(fig, out, dpi=100)
 
 
 def links_card(card: dict) -> str:
