@@ -112,7 +112,7 @@ def _play_with_every_link(config: str, dataset: str) -> dict:
     from maniskill_tidy.models.memory_links import MemoryLinks
     from maniskill_tidy.policies.channel import Channel
     from maniskill_tidy.policies.memory import memory_team_class
-    from maniskill_tidy.policies.memory_links import SUMMARY
+    from maniskill_tidy.policies.memory_links import SUMMARY, LinkedMemoryAgent
 
     sent = []
     send = Channel.send
@@ -123,6 +123,15 @@ def _play_with_every_link(config: str, dataset: str) -> dict:
         return send(self, sender, receivers, vector, kind)
 
     Channel.send = logged  # this worker ends with the test
+    traced = []
+    trace = LinkedMemoryAgent.trace
+
+    def kept(self):
+        out = trace(self)
+        traced.append(out)
+        return out
+
+    LinkedMemoryAgent.trace = kept
     team = memory_team_class(config)(keep_decisions=True)
     zero = MemoryLinks(len(SUMMARY))
     for p in zero.parameters():
@@ -135,7 +144,9 @@ def _play_with_every_link(config: str, dataset: str) -> dict:
         env.close()
     reports = sum(len(a.reports) + len(a.dismissed) for a in team.made)
     told = sum(len(s) for a in team.made for s in a.told.values())
-    return {"record": record, "sent": sent, "reports": reports, "told": told}
+    handshakes = [(np.shape(t["T"]), t["groups"]) for t in traced if "T" in t]
+    return {"record": record, "sent": sent, "reports": reports, "told": told,
+            "handshakes": handshakes}  # fmt: skip
 
 
 def test_a_links_team_sends_only_the_handshake_and_entries_along_its_links(
@@ -158,6 +169,9 @@ def test_a_links_team_sends_only_the_handshake_and_entries_along_its_links(
         if kind == "value":
             assert size >= 10 and (size - 10) % 4 == 0 and size <= 10 + 4 * 4
     assert played["told"] > 0 and played["reports"] > 0  # entries went out and were taken in
+    # recordings get each step's T and groups: with every link, one group of all three
+    assert played["handshakes"] and all(shape == (3, 3) for shape, _ in played["handshakes"])
+    assert any(len(groups) == 1 and len(groups[0]) == 3 for _, groups in played["handshakes"])
     assert played["record"]["comm"] == sum(size * copies for *_, size, copies in played["sent"])
 
 
