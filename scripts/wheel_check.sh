@@ -16,6 +16,17 @@ fi
 echo "[wheel-check] building the wheel in $OUT"
 .venv/bin/pip wheel -q --no-deps -w "$OUT/dist" . 2>&1 \
   | { grep -v -e "is ignored: it is neither a file nor a directory" || true; }
+# the licences travel with the package: the code's LICENSE and the assets' ATTRIBUTION.md
+python3 - "$OUT"/dist/*.whl <<'PY'
+import sys, zipfile
+names = zipfile.ZipFile(sys.argv[1]).namelist()
+for want in ("LICENSE", "ATTRIBUTION.md"):
+    found = [n for n in names if ".dist-info/licenses/" in n and n.endswith(want)]
+    assert found, f"the wheel has no {want} under .dist-info/licenses/"
+meta = zipfile.ZipFile(sys.argv[1]).read(next(n for n in names if n.endswith(".dist-info/METADATA")))
+assert b"License-Expression: Apache-2.0 AND CC-BY-3.0" in meta, "no licence expression"
+print("[wheel-check] LICENSE and ATTRIBUTION.md are in the wheel's .dist-info/licenses/")
+PY
 python3 -m venv "$OUT/venv"
 echo "[wheel-check] installing $(basename "$OUT"/dist/*.whl) into a fresh venv"
 "$OUT/venv/bin/pip" install -q -c constraints.txt "$OUT"/dist/*.whl 2>&1 \

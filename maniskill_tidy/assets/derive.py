@@ -23,6 +23,7 @@ from PIL import Image, ImageDraw
 from tqdm import tqdm
 
 from maniskill_tidy.assets import ASSET_DIR, SELECTION
+from maniskill_tidy.assets.licences import ALLOWED, NAMES, URIS, check, identify
 from maniskill_tidy.assets.meshes import (
     budget_split,
     decimate,
@@ -42,9 +43,11 @@ OBJECT_TRIANGLES = 300
 FURNITURE_TEXTURE = 256  # px, longest side
 OBJECT_TEXTURE = 128
 ROOM_TEXTURE = 256
-ALLOWED_LICENCES = ("CC0-1.0", "CC-BY-3.0", "CC-BY-3.0-US", "MIT", "Apache-2.0")
+ALLOWED_LICENCES = ALLOWED
 DEFAULT_SH3D = Path("/usr/share/sweethome3d/furniture")
+PROJECT_LICENCE = Path(__file__).parents[2] / "LICENSE"
 KINDS = ("furniture", "objects", "robots", "textures", "environment")
+OWN = ("robots/", "environment.hdr")  # files the project models from no source
 
 
 @dataclass
@@ -58,9 +61,6 @@ class Derivation:
     def __post_init__(self) -> None:
         self.selection = tomllib.loads(SELECTION.read_text())
         self.sources = self.selection["sources"]
-        for label, src in self.sources.items():
-            if src["licence"] not in ALLOWED_LICENCES:
-                raise ValueError(f"source {label}: licence {src['licence']} is not shippable")
         self.archives: dict[str, Sh3fArchive] = {}
         self.wheel: WheelFiles | None = None
         self.tmp = Path(tempfile.mkdtemp(prefix="derive-assets-"))
@@ -77,13 +77,21 @@ class Derivation:
             raise ValueError(f"texture {ref!r}: expected robosuite/NAME")
         if self.wheel is None:
             self.wheel = WheelFiles(self.robosuite)
-        path = self.wheel.file(f"robosuite/models/assets/textures/{name}.png")
-        return Image.open(path), self.credit(label, f"robosuite/models/assets/textures/{name}.png")
+        inner = f"robosuite/models/assets/textures/{name}.png"
+        credit = {k: v for k, v in self.wheel.credit().items() if k != "licence_text"}
+        work = {"source": label, "model": inner, "title": f"{name} texture"}
+        work["author"] = credit.get("holder", label)
+        return Image.open(self.wheel.file(inner)), work | credit
 
-    def credit(self, label: str, model: str, **extra) -> dict:
-        src = self.sources[label]
-        base = {"source": label, "model": model, "licence": src["licence"]}
-        return base | {"holder": src["holder"]} | extra
+    def own(self, model: str, name: str) -> dict:
+        """A file the project models itself, under the licence of the project's own LICENSE."""
+        if not PROJECT_LICENCE.is_file():
+            raise FileNotFoundError(f"{PROJECT_LICENCE}: the project's LICENSE is missing; "
+                                    "derive-assets runs from a checkout")  # fmt: skip
+        spdx = check(identify(PROJECT_LICENCE.read_text()), name, "LICENSE")
+        return {"source": "maniskill-tidy", "model": model, "title": name,
+                "author": "maniskill-tidy contributors", "licence": spdx,
+                "licence_file": "LICENSE"}  # fmt: skip
 
     def model_parts(self, ref: str, box: np.ndarray) -> tuple[list, dict]:
         """A catalog model fitted into ``box`` (x0, y0, z0, x1, y1, z1, metres)."""
@@ -100,8 +108,7 @@ class Derivation:
             m.vertices = m.vertices * scale + offset
             normals = m.vertex_normals / np.where(scale == 0, 1, scale)  # inverse transpose
             m.vertex_normals = normals / np.linalg.norm(normals, axis=1, keepdims=True).clip(1e-9)
-        extra = {"name": model.name, "author": model.creator} | arc.credit(model)
-        return parts, self.credit(label, model.path, **extra)
+        return parts, {"source": label, "model": model.path} | arc.credit(model)
 
     # ------------------------------------------------------------------ writing
     def write(self, rel: str, data: bytes, entry: dict) -> None:
@@ -182,21 +189,18 @@ class Derivation:
                 self.mesh_file(rel, parts, OBJECT_TRIANGLES, OBJECT_TEXTURE, entry)
 
     def robots(self) -> None:
-        import mani_skill
-
         from maniskill_tidy.assets import robots
 
-        inner = self.selection["robots"]["fetch"].split("/", 1)[1]
-        root = Path(mani_skill.__file__).parent / "assets"
-        links = None
         for kind in tqdm(robots.KINDS, desc="robots"):
             rel = f"robots/{kind}.glb"
             if not self.wanted(rel):
                 continue
-            links = links or robots.fetch_links(root / "robots/fetch/fetch.urdf")
-            credit = self.credit("mani-skill", f"mani_skill/assets/{inner}", name="Fetch")
+            parts = robots.robot_parts(kind)
+            if robots.triangles(parts) > robots.TRIANGLES[kind]:  # never decimated: modelled
+                raise ValueError(f"robot {kind}: {robots.triangles(parts)} triangles, over "
+                                 f"its budget of {robots.TRIANGLES[kind]}")  # fmt: skip
+            credit = self.own("maniskill_tidy/assets/robots.py", name=f"{kind} robot")
             entry = {"kind": "robot", "type": kind, "sources": [credit]}
-            parts = robots.robot_parts(links, kind)
             self.mesh_file(rel, parts, robots.TRIANGLES[kind], FURNITURE_TEXTURE, entry)
 
     def textures(self) -> None:
@@ -212,28 +216,27 @@ class Derivation:
 
     def environment(self) -> None:
         import cv2
-        import mani_skill
 
-        spec = self.selection["environment"]
+        from maniskill_tidy.assets.lighting import room_map
+
         rel = "environment.hdr"
         if not self.wanted(rel):
             return
-        inner = spec["map"].split("/", 1)[1]
-        src = Path(mani_skill.__file__).parent / "assets" / inner
-        hdr = cv2.imread(str(src), cv2.IMREAD_ANYDEPTH | cv2.IMREAD_COLOR)
-        if hdr is None:
-            raise FileNotFoundError(f"{src}: cannot read the environment map")
-        small = cv2.resize(hdr, tuple(spec["size"]), interpolation=cv2.INTER_AREA)
-        ok, data = cv2.imencode(".hdr", small)
-        credit = self.credit("mani-skill", f"mani_skill/assets/{inner}")
+        width, height = self.selection["environment"]["size"]
+        ok, data = cv2.imencode(".hdr", room_map(width, height)[..., ::-1])  # cv2 wants BGR
+        if not ok:
+            raise RuntimeError("cannot encode the environment map as .hdr")
+        credit = self.own("maniskill_tidy/assets/lighting.py", "room environment map")
         self.write(rel, data.tobytes(), {"kind": "environment", "sources": [credit]})
 
     def run(self, kinds: tuple[str, ...] = KINDS) -> dict:
-        """Derive into a fresh folder, then swap it in: a failed run leaves the old set."""
-        for label, src in self.sources.items():  # every source there before any work
-            if src.get("archive", "").endswith(".sh3f"):
-                self.archive(label)
-        self.wheel = self.wheel or WheelFiles(self.robosuite)
+        """Derive into a fresh folder, then swap it in: a failed run leaves the old set. A
+        partial run (``only``, tests) opens only the sources its files need."""
+        if self.only is None or not all(r.startswith(OWN) for r in self.only):
+            for label, src in self.sources.items():  # every source there before any work
+                if src.get("archive", "").endswith(".sh3f"):
+                    self.archive(label)
+            self.wheel = self.wheel or WheelFiles(self.robosuite)
         final, staged = self.out, self.only is None  # a partial run (tests) writes in place
         if staged:
             self.out = final.with_name(f".{final.name}.new")
@@ -241,9 +244,12 @@ class Derivation:
         try:
             for kind in kinds:
                 getattr(self, kind)()
-            mit = self.wheel.file("robosuite-1.5.2.dist-info/licenses/LICENSE").read_text()
             write_manifest(self.out, self.manifest)
-            (self.out / "ATTRIBUTION.md").write_text(attribution(self.manifest, mit))
+            notices = {}  # MIT: its text travels with the work
+            if self.wheel is not None:
+                wheel = self.wheel.credit()
+                notices[wheel["licence"]] = wheel["licence_text"]
+            (self.out / "ATTRIBUTION.md").write_text(attribution(self.manifest, notices))
             if staged:
                 shutil.rmtree(final, ignore_errors=True)
                 self.out.replace(final)
@@ -369,49 +375,51 @@ def write_manifest(out: Path, manifest: dict, merge: bool = False) -> Path:
     return path
 
 
-LICENCE_NAMES = {
-    "CC0-1.0": "CC0 1.0 (public domain dedication)",
-    "CC-BY-3.0": "Creative Commons Attribution 3.0 Unported",
-    "CC-BY-3.0-US": "Creative Commons Attribution 3.0 United States",
-    "MIT": "MIT",
-    "Apache-2.0": "Apache License 2.0",
+MODIFIED = {
+    "furniture": "decimated, rescaled to the piece, textures downscaled, converted to glTF",
+    "object": "decimated, rescaled to the object's size, textures downscaled, converted to glTF",
+    "texture": "downscaled (tiles: grout lines drawn)",
 }
 
 
-def attribution(manifest: dict, mit_text: str) -> str:
-    """ATTRIBUTION.md: every CC-BY model with title and author, the MIT and Apache notices."""
+def attribution(manifest: dict, notices: dict[str, str]) -> str:
+    """ATTRIBUTION.md, from what the manifest says was read: for every source work its title,
+    author, origin, licence with its URI, the file that states it, what was changed and where
+    it is used; the licence texts that must travel with the work (``notices``: SPDX -> text)."""
+    works: dict[tuple[str, str], dict] = {}
+    for rel, entry in sorted(manifest.items()):
+        for src in entry.get("sources", []):
+            work = works.setdefault((src["source"], src["model"]), {"credit": src, "used": []})
+            work["used"].append((rel, entry["kind"]))
     lines = [
         "# Attribution of the v2 assets",
         "",
-        "Written by `maniskill-tidy derive-assets` from `manifest.json`; do not edit by hand.",
-        "The files under `data/` are derived works: decimated, rescaled, textures downscaled.",
+        "Written by `maniskill-tidy derive-assets` from `manifest.json`, which holds what the",
+        "derivation read from each source's own files; do not edit by hand. Every file under",
+        "`data/` is a derived work of the sources listed here; each names what was changed.",
         "",
     ]
-    by_source: dict[str, dict[str, list[str]]] = {}
-    for rel, entry in sorted(manifest.items()):
-        for src in entry.get("sources", []):
-            key = src["model"] if "model" in src else rel
-            by_source.setdefault(src["source"], {}).setdefault(key, []).append(rel)
-            by_source[src["source"]].setdefault("__meta__", [src["licence"], src.get("holder", "")])
-    for label in sorted(by_source):
-        models = by_source[label]
-        licence, holder = models.pop("__meta__")
-        lines += [f"## {label}: {LICENCE_NAMES.get(licence, licence)}", ""]
-        if holder:
-            lines += [f"Copyright holders: {holder}.", ""]
-        for model, used in sorted(models.items()):
-            entry = next(
-                s
-                for r in used
-                for s in manifest[r].get("sources", [])
-                if s.get("model", r) == model
-            )
-            who = entry.get("author") or ""
-            title = entry.get("title") or entry.get("name") or ""
-            origin = f" <{entry['origin']}>" if entry.get("origin") else ""
-            credit = f'"{title}" by {who}{origin}' if title and who else title or who
-            lines.append(f"- `{model}`{': ' + credit if credit else ''} -> {', '.join(used)}")
-        if licence == "MIT":
-            lines += ["", "```", mit_text.strip(), "```"]
+    for label in sorted({label for label, _ in works}):
+        entries = sorted((model, w) for (lab, model), w in works.items() if lab == label)
+        licences = sorted({w["credit"]["licence"] for _, w in entries})
+        lines += [f"## {label} ({', '.join(licences)})", ""]
+        for model, w in entries:
+            c, used = w["credit"], w["used"]
+            spdx = c["licence"]
+            kinds = sorted({kind for _, kind in used})
+            changed = "; ".join(MODIFIED[k] for k in kinds if k in MODIFIED)
+            holder = c.get("holder") if c.get("holder") != c.get("author") else None
+            lines += [
+                f'- **"{c.get("title", model)}"** by {c.get("author", "unknown")}'
+                + (f" (rights: {holder})" if holder else ""),
+                f"  - source: `{model}`" + (f", <{c['url']}>" if c.get("url") else ""),
+                f"  - licence: {NAMES[spdx]} ({spdx}), <{URIS[spdx]}>, as stated in "
+                f"`{c['licence_file']}`",
+            ]
+            if changed and c["source"] != "maniskill-tidy":
+                lines.append(f"  - modified: {changed}")
+            lines.append(f"  - used in: {', '.join(rel for rel, _ in used)}")
         lines.append("")
+    for spdx, text in sorted(notices.items()):
+        lines += [f"## The {NAMES[spdx]} text", "", "```", text.strip(), "```", ""]
     return "\n".join(lines)

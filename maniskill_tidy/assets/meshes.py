@@ -143,7 +143,10 @@ def part_mesh(corners, normals, uvs, look: dict, max_texture: int) -> trimesh.Tr
     if uvs is not None:
         uvs = uvs.copy()
         uvs[flip] = uvs[flip][:, ::-1]
-    kwargs = {"roughnessFactor": 0.7, "metallicFactor": 0.0}
+    kwargs = {
+        "roughnessFactor": look.get("roughness", 0.7),
+        "metallicFactor": look.get("metallic", 0.0),
+    }
     if uvs is not None and look["image"] is not None:
         material = trimesh.visual.material.PBRMaterial(
             baseColorTexture=downscale(look["image"], max_texture), **kwargs

@@ -155,7 +155,7 @@ def cd(d, size):
     m, look = disc
     look["uv"] = (m.vertices[:, :2] + 1) / 2  # planar: the image seen from above
     hole = _part(_cylinder(0.15, 0.052, -0.001, 12), None, (0.9, 0.9, 0.92))
-    return fit_into([disc, hole], size), [{"source": "maniskill-tidy", "licence": "Apache-2.0"}]
+    return fit_into([disc, hole], size), [d.own("maniskill_tidy/assets/shapes.py:cd", "CD")]
 
 
 def card(d, size):
@@ -168,7 +168,7 @@ def card(d, size):
     m = trimesh.creation.box((1.0, 1.0, 0.02))
     part = _part(m, _flat_image(face))
     part[1]["uv"] = m.vertices[:, :2] + 0.5
-    return fit_into([part], size), [{"source": "maniskill-tidy", "licence": "Apache-2.0"}]
+    return fit_into([part], size), [d.own("maniskill_tidy/assets/shapes.py:card", "credit card")]
 
 
 def dumbbell(d, size):

@@ -42,14 +42,14 @@ class Studio:
         self.scene.add_directional_light([-0.4, -0.8, -1.0], [0.9, 0.9, 0.88])
         self.camera = self.scene.add_camera("studio", TILE, TILE, math.radians(35), 0.01, 50)
 
-    def shoot(self, build) -> np.ndarray:
+    def shoot(self, build, view=(0.55, 1.4, 0.75)) -> np.ndarray:
         builder = self.scene.create_actor_builder()
         build(builder)
         actor = builder.build_static("subject")
         body = actor.find_component_by_type(sapien.render.RenderBodyComponent)
         lo, hi = body.compute_global_aabb_tight()
         centre, radius = (lo + hi) / 2, float(np.linalg.norm(hi - lo)) / 2
-        eye = centre + np.array([0.55, 1.4, 0.75]) / 1.7 * radius / math.tan(math.radians(17))
+        eye = centre + np.asarray(view) / 1.7 * radius / math.tan(math.radians(17))
         forward = (centre - eye) / np.linalg.norm(centre - eye)
         left = np.cross([0.0, 0.0, 1.0], forward)
         left /= np.linalg.norm(left)
@@ -106,6 +106,22 @@ def object_tiles(studio: Studio) -> list[tuple[str, str, np.ndarray]]:
                 b.add_visual_from_file(str(assets.path(rel)))
 
             out.append((t, _credit(rel), studio.shoot(build)))
+    return out
+
+
+ROBOT_VIEWS = ((0.55, 1.4, 0.75), (-1.2, -0.9, 0.6))  # front-left, back-right: the arm
+
+
+def robot_tiles(studio: Studio) -> list[tuple[str, str, np.ndarray]]:
+    """The four robot kinds, each from the front and from behind."""
+    out = []
+    for rel in sorted(r for r in assets.manifest() if r.startswith("robots/")):
+        for view in ROBOT_VIEWS:
+
+            def build(b, rel=rel):
+                b.add_visual_from_file(str(assets.path(rel)))
+
+            out.append((Path(rel).stem, _credit(rel), studio.shoot(build, view)))
     return out
 
 
@@ -185,6 +201,12 @@ def write_gallery(out: Path) -> list[Path]:
         out / "assets-objects.png",
         cols=10,
     )
+    robots = sheet(
+        robot_tiles(studio),
+        "HeteroTidy-v2: the robot kinds, modelled by the project (front, back)",
+        out / "assets-robots.png",
+        cols=4,
+    )
     page = out / "assets.md"
     page.write_text(
         "# The v2 assets\n\n"
@@ -192,6 +214,7 @@ def write_gallery(out: Path) -> list[Path]:
         "from `maniskill_tidy/assets/data/manifest.json`; the credits in full are in "
         "`maniskill_tidy/assets/data/ATTRIBUTION.md`. Shapes are built by "
         "`maniskill_tidy/assets/shapes.py` around a robosuite (MIT) texture.\n\n"
+        "![robots](assets-robots.png)\n\n"
         "![furniture](assets-furniture.png)\n\n![objects](assets-objects.png)\n\n" + table() + "\n"
     )
-    return [furniture, objects, page]
+    return [robots, furniture, objects, page]
