@@ -245,3 +245,34 @@ def test_the_package_licence_covers_what_ships():
     assert set(meta["license"].split(" AND ")) == spdx
     assert {"LICENSE", "maniskill_tidy/assets/data/ATTRIBUTION.md"} <= set(meta["license-files"])
     assert identify((ROOT / "LICENSE").read_text()) == "Apache-2.0"
+
+
+def test_teammates_see_the_modelled_robots_where_v1_draws_its_robots():
+    """Test episode 5 of Setting I: agents 1 and 2 see the manipulator in both looks; v2's
+    robots carry the same segmentation ids, cover a like area, and no agent sees its own arm."""
+    from maniskill_tidy.envs.actions import Action
+    from maniskill_tidy.envs.hetero_tidy import HeteroTidyEnv
+
+    seen = {}
+    for visuals in ("flat", "realistic"):
+        env = HeteroTidyEnv(setting="I", split="test", visuals=visuals)
+        try:
+            obs, _ = env.reset(options={"episode": 5})
+            ids = {e.per_scene_id: n for n, e in zip(env.agent_names, env.robots, strict=True)}
+            frames = [obs]
+            for _ in range(2):  # tilt every camera fully down: its own body under it
+                frames.append(env.step({n: int(Action.LookDown) for n in env.agent_names})[0])
+            for i, frame in enumerate(frames):
+                for name in env.agent_names:
+                    seg = frame[name]["segmentation"]
+                    for rid, robot in ids.items():
+                        seen[(visuals, i, name, robot)] = int((seg == rid).sum())
+        finally:
+            env.close()
+    for viewer, other in (("agent_1", "agent_2"), ("agent_2", "agent_1")):
+        for i in range(3):
+            v1, v2 = seen[("flat", i, viewer, other)], seen[("realistic", i, viewer, other)]
+            assert v1 > 600 and 0.6 < v2 / v1 < 1.6, (viewer, i, v1, v2)
+    for (visuals, i, name, robot), pixels in seen.items():
+        if name == robot and visuals == "realistic":  # its own base, looking down; not its arm
+            assert pixels <= seen[("flat", i, name, robot)] + 200, (name, i, pixels)

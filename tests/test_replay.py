@@ -23,19 +23,21 @@ def tidy120(tmp_path_factory) -> Path:
     return data
 
 
-def replay(data: Path, policy: str, setting: str, episodes: int) -> None:
+def replay(data: Path, row: str, setting: str, episodes: int) -> None:
+    """Replays a row's first episodes (``expert-v2``: the expert on HeteroTidy-v2)."""
     from maniskill_tidy.eval.runner import RunConfig, make_env, run_episode, select
     from maniskill_tidy.policies import make_team
 
-    committed = RESULTS / f"setting_{setting}" / policy
+    committed = RESULTS / f"setting_{setting}" / row
     run = json.loads((committed / "run.json").read_text())
+    policy = run["policy"]
     manifest = json.loads((data / "manifest.json").read_text())
     assert manifest["dataset_hash"] == run["dataset_hash"]
     before = {
         r["episode"]: r
         for r in map(json.loads, (committed / "episodes.jsonl").read_text().splitlines())
     }
-    cfg = RunConfig(policy, setting, "test", str(data))
+    cfg = RunConfig(policy, setting, "test", str(data), env=run.get("env", "HeteroTidy-v1"))
     env, team = make_env(cfg), make_team(policy)
     try:
         starts = [e.start for e in env.unwrapped.episodes.episodes]
@@ -44,14 +46,16 @@ def replay(data: Path, policy: str, setting: str, episodes: int) -> None:
             old = before[r["episode"]]
             assert {k: v for k, v in r.items() if k != "seconds"} == {
                 k: v for k, v in old.items() if k != "seconds"
-            }, (policy, setting, r["episode"])
+            }, (row, setting, r["episode"])
     finally:
         env.close()
 
 
-@pytest.mark.parametrize("policy", ["expert", "heuristic-none", "hangrcom", "memory"])
-def test_a_committed_episode_replays_identically(tidy120, policy):
-    replay(tidy120, policy, "I", 1)
+@pytest.mark.parametrize(
+    "row", ["expert", "heuristic-none", "hangrcom", "memory", "heuristic-none-v2"]
+)
+def test_a_committed_episode_replays_identically(tidy120, row):
+    replay(tidy120, row, "I", 1)
 
 
 @pytest.mark.slow
@@ -68,7 +72,10 @@ def test_a_committed_episode_replays_identically(tidy120, policy):
         ("hangrcom", "II"),
         ("memory", "I"),
         ("memory", "II"),
+        ("expert-v2", "I"),  # v2's rows: its robots and lighting as shipped
+        ("heuristic-none-v2", "II"),
+        ("heuristic-broadcast-v2", "I"),
     ],
 )
 def test_committed_episodes_replay_identically(tidy120, policy, setting):
-    replay(tidy120, policy, setting, 5)  # issue 48: five each
+    replay(tidy120, policy, setting, 5)  # five each
