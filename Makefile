@@ -43,8 +43,10 @@ bench: setup
 	$(PY) -m maniskill_tidy.bench
 
 # The v2 look's assets (maintainers): Debian's sweethome3d-furniture (CC0 / CC-BY models) and the
-# robosuite wheel (MIT textures, unpacked, not installed) -> maniskill_tidy/assets/data/ with its
-# manifest and ATTRIBUTION.md. `make demo` and `make test` use the committed set instead.
+# robosuite wheel (MIT textures, unpacked, not installed), each licence read from the source's own
+# files, plus the robots and the environment map the project models -> maniskill_tidy/assets/data/
+# with its manifest and ATTRIBUTION.md, the same bytes on every machine (`make test-slow` checks).
+# `make demo` and `make test` use the committed set instead.
 ROBOSUITE_WHEEL := out/sources/robosuite-1.5.2-py3-none-any.whl
 assets: setup
 	dpkg-query -W sweethome3d-furniture >/dev/null 2>&1 || \
