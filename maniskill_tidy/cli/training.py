@@ -59,6 +59,22 @@ def _demos(args: argparse.Namespace) -> int:
     return 0
 
 
+def _segmenter_data(args: argparse.Namespace) -> int:
+    from maniskill_tidy.training.segmenter_data import SegDataConfig, build_segmenter_data
+
+    if args.every < 1 or args.max_steps < 1:
+        raise ValueError(f"--every {args.every}, --max-steps {args.max_steps}: expected >= 1")
+    for split in args.splits.split(","):
+        if split not in ("train", "val", "test"):
+            raise ValueError(f"--splits {args.splits!r}: expected train, val and/or test")
+        cfg = SegDataConfig(args.dataset, split, args.env, args.every, args.max_steps,
+                            args.houses)  # fmt: skip
+        m = build_segmenter_data(cfg, Path(args.out) / split, workers=args.workers)
+        print(f"{split}: {m['frames']} frames of {m['houses_done']} houses in "
+              f"{Path(args.out) / split} (data hash {m['data_hash'][:12]}, {m['seconds']:.0f} s)")
+    return 0
+
+
 def _train(args: argparse.Namespace) -> int:
     from maniskill_tidy.policies.agent_config import trainer_of
     from maniskill_tidy.training.qmix_trainer import train_qmix
@@ -170,6 +186,20 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     )
     env_option(dm)
     dm.set_defaults(func=_demos)
+
+    sd = sub.add_parser(
+        "segmenter-data",
+        help="frames with the renderer's masks and types, for the pixels track's segmenter",
+    )
+    sd.add_argument("--dataset", default="data/tidy120")
+    sd.add_argument("--splits", default="train,val,test")
+    sd.add_argument("--out", required=True, help="a folder per split is made in it")
+    sd.add_argument("--every", type=int, default=6, help="keep frames every N env steps")
+    sd.add_argument("--max-steps", type=int, default=120, help="steps played per episode")
+    sd.add_argument("--houses", type=int, help="only the first N houses of each split")
+    sd.add_argument("--workers", type=int, default=2)
+    env_option(sd)
+    sd.set_defaults(func=_segmenter_data, env="HeteroTidy-v2")
 
     tr = sub.add_parser(
         "train", help="train learned modules: the paper's, QMIX, the object-memory team (CPU)"
