@@ -76,3 +76,59 @@ def test_the_same_dataset_renders_the_same_frames(tiny, tmp_path):
     assert build_segmenter_data(cfg, tmp_path / "b", progress=False)["data_hash"] == (
         manifest["data_hash"]
     )
+
+
+def test_instances_split_at_depth_jumps_and_score_a_perfect_prediction_at_ap_one(tiny):
+    from maniskill_tidy.eval.mask_ap import mask_ap
+    from maniskill_tidy.perception.instances import Mask2D, split_instances
+
+    # two boxes of one class side by side, one 1 m behind the other: two instances
+    labels = np.zeros((40, 40), dtype=np.uint8)
+    labels[10:20, 5:20] = labels[10:20, 20:35] = 7
+    depth = np.full((40, 40), 3.0, dtype=np.float32)
+    depth[10:20, 5:20], depth[10:20, 20:35] = 1.0, 2.0
+    parts = split_instances(labels, depth, [7])
+    assert sorted(p.area for p in parts) == [150, 150] and {p.cls for p in parts} == {7}
+    depth[10:20, 20:35] = 1.02  # the same surface: one instance
+    assert [p.area for p in split_instances(labels, depth, [7])] == [300]
+
+    _, out, _ = tiny
+    c = seg_classes()
+    pickupable = [i for i in range(len(c.names)) if c.is_pickupable(i)]
+    with np.load(sorted(out.glob("house_*.npz"))[0]) as z:
+        truth = []
+        for inst, cls in zip(z["instance"], z["cls"], strict=True):
+            truth.append([Mask2D(int(cls[inst == i][0]), inst == i, 1.0)
+                          for i in np.unique(inst[inst > 0])])  # fmt: skip
+    frames = [(t, t) for t in truth]
+    perfect = mask_ap(frames, pickupable, (224, 224))
+    assert perfect["truth"] > 0 and perfect["AP"] == perfect["AP50"] == 1.0
+    # every prediction given the wrong class: nothing matches
+    wrong = [(t, [Mask2D(pickupable[(pickupable.index(m.cls) + 1) % len(pickupable)]
+                         if m.cls in pickupable else m.cls, m.mask, 1.0) for m in t])
+             for t in truth]  # fmt: skip
+    assert mask_ap(wrong, pickupable, (224, 224))["AP50"] == 0.0
+    # half of the instances missed: recall, and so AP, falls
+    half = [(t, t[::2]) for t in truth]
+    assert 0.0 < mask_ap(half, pickupable, (224, 224))["AP50"] < 1.0
+
+
+def test_the_segmenter_gives_class_logits_at_half_resolution_and_learns():
+    import torch
+
+    from maniskill_tidy.models.segmenter import Segmenter
+
+    torch.manual_seed(0)
+    model = Segmenter(5, widths=(8, 8, 16, 16, 16))
+    rgb, depth = torch.rand(2, 3, 64, 64) * 255, torch.rand(2, 1, 64, 64) * 4
+    assert model(rgb, depth).shape == (2, 5, 32, 32)
+    target = (depth[:, 0, ::2, ::2] > 2).long()  # near vs far: learnable from depth alone
+    opt = torch.optim.Adam(model.parameters(), 1e-2)
+    losses = []
+    for _ in range(30):
+        loss = torch.nn.functional.cross_entropy(model(rgb, depth), target)
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        losses.append(loss.item())
+    assert losses[-1] < 0.5 * losses[0]
