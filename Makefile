@@ -2,7 +2,7 @@
 PY := .venv/bin/python
 DEMO_DIR := out/demo
 
-.PHONY: segmenter-data setup test test-slow demo bench assets leaderboard leaderboard-v2 train-perception-v2 train train-all train-memory lint docs wheel-check clean
+.PHONY: segmenter-data train-segmenter setup test test-slow demo bench assets leaderboard leaderboard-v2 train-perception-v2 train train-all train-memory lint docs wheel-check clean
 
 setup:
 	@bash scripts/setup.sh
@@ -98,6 +98,11 @@ segmenter-data: setup
 	test -f $(DATA120)/manifest.json || $(PY) -m maniskill_tidy.cli generate --houses 120 --seed 0 --workers 2 --out $(DATA120)
 	for e in HeteroTidy-v2 HeteroTidy-v1; do $(PY) -m maniskill_tidy.cli segmenter-data --env $$e \
 	  --dataset $(DATA120) --out $(SEGMENTER_DATA)/$$e --workers 2 || exit 1; done
+
+# The segmenter per look on those frames (resumable per epoch): agents/segmenter-v2, -v1.
+train-segmenter: segmenter-data
+	$(PY) -m maniskill_tidy.cli train-segmenter --data $(SEGMENTER_DATA)/HeteroTidy-v2 --out agents/segmenter-v2
+	$(PY) -m maniskill_tidy.cli train-segmenter --data $(SEGMENTER_DATA)/HeteroTidy-v1 --out agents/segmenter-v1
 
 # The paper's learned model, on CPU. Perception (issue 12): render the views of the 120-house
 # dataset's houses (resumable per house), train every stage with and without the knowledge

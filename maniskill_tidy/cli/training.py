@@ -13,7 +13,7 @@ TRAIN_DEFAULTS = {"dataset": "data/tidy120", "out": "agents/perception",
                   "scene_widths": None}  # fmt: skip
 
 
-def widths(option: str, text: str | None) -> dict:
+def widths(option: str, text: str | None, count: int = 4) -> dict:
     """``--visual-widths 16,32,48,64`` as TrainConfig's field (nothing: the shipped widths)."""
     if text is None:
         return {}
@@ -21,9 +21,10 @@ def widths(option: str, text: str | None) -> dict:
         values = tuple(int(v) for v in text.split(","))
     except ValueError:
         values = ()
-    if len(values) != 4 or min(values) < 1:
-        raise ValueError(f"--{option} {text!r}: expected four positive channel counts, e.g. "
-                         "16,32,48,64")  # fmt: skip
+    if len(values) != count or min(values) < 1:
+        example = ",".join(str(16 * (i + 1)) for i in range(count))
+        raise ValueError(f"--{option} {text!r}: expected {count} positive channel counts, e.g. "
+                         f"{example}")  # fmt: skip
     return {option.replace("-", "_"): values}
 
 
@@ -72,6 +73,23 @@ def _segmenter_data(args: argparse.Namespace) -> int:
         m = build_segmenter_data(cfg, Path(args.out) / split, workers=args.workers)
         print(f"{split}: {m['frames']} frames of {m['houses_done']} houses in "
               f"{Path(args.out) / split} (data hash {m['data_hash'][:12]}, {m['seconds']:.0f} s)")
+    return 0
+
+
+def _train_segmenter(args: argparse.Namespace) -> int:
+    from maniskill_tidy.training.segmenter_trainer import SegTrainConfig, train_segmenter
+
+    if args.epochs < 1 or args.batch < 1 or not 16 <= args.crop <= 224 or args.crop % 2:
+        raise ValueError(f"--epochs {args.epochs}, --batch {args.batch}, --crop {args.crop}: "
+                         "expected at least 1, at least 1, an even size in 16..224")  # fmt: skip
+    extra = widths("widths", args.widths, count=5) if args.widths else {}
+    cfg = SegTrainConfig(args.data, args.out, epochs=args.epochs, batch=args.batch,
+                         crop=args.crop, seed=args.seed, **extra)  # fmt: skip
+    card = train_segmenter(cfg)
+    t, v = card["test"], card["val"]
+    print(f"{args.out}: best epoch {card['best_epoch']} of {args.epochs} "
+          f"({card['train_seconds']:.0f} s); val mask AP50 {v['AP50']:.3f}; test mask AP "
+          f"{t['AP']:.3f}, AP50 {t['AP50']:.3f} over {t['truth']} pickupable objects")  # fmt: skip
     return 0
 
 
@@ -200,6 +218,18 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     sd.add_argument("--workers", type=int, default=2)
     env_option(sd)
     sd.set_defaults(func=_segmenter_data, env="HeteroTidy-v2")
+
+    ts = sub.add_parser(
+        "train-segmenter", help="the pixels track's segmenter, on segmenter-data's frames (CPU)"
+    )
+    ts.add_argument("--data", required=True, help="segmenter-data's folder (train/, val/, test/)")
+    ts.add_argument("--out", required=True, help="e.g. agents/segmenter-v2")
+    ts.add_argument("--epochs", type=int, default=10)
+    ts.add_argument("--batch", type=int, default=16)
+    ts.add_argument("--crop", type=int, default=128, help="training crops, px (frames are 224)")
+    ts.add_argument("--widths", help="channels of the five levels (16,24,48,64,96)")
+    ts.add_argument("--seed", type=int, default=0)
+    ts.set_defaults(func=_train_segmenter)
 
     tr = sub.add_parser(
         "train", help="train learned modules: the paper's, QMIX, the object-memory team (CPU)"
