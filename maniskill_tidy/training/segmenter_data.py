@@ -5,9 +5,10 @@ Per house of a split, one episode each of the privileged expert, the camera-only
 and random look-arounds (Setting I: cameras at 0.22, 0.9 and 1.0 m), each from its own
 meta-task; every ``every``-th step, every agent's frame is kept: RGB, depth, the class of each
 pixel (``perception/seg_classes.py``) and an instance index per pixel (0: none; the same
-instance keeps its index across a house's frames, for evaluating instance masks). A house is
-one ``.npz`` shard written atomically: a killed build resumes at the next house; one hash over
-the shards names the data. Train houses train, val houses select, test houses report.
+instance keeps its index across a house's frames, for evaluating instance masks) and its
+camera matrices. A house is one ``.npz`` shard written atomically: a killed build resumes at
+the next house; one hash over the shards names the data. Train houses train, val houses
+select, test houses report.
 """
 
 from __future__ import annotations
@@ -75,6 +76,8 @@ def _frames(env, team_name: str, index: int, cfg: SegDataConfig) -> list[dict]:
                 seg = np.asarray(o["segmentation"]).reshape(o["rgb"].shape[:2])
                 out.append({"rgb": np.asarray(o["rgb"]), "depth": np.asarray(o["depth"]),
                             "cls": classes.labels(seg, table), "seg": seg.astype(np.int64),
+                            "intrinsics": np.asarray(o["intrinsics"], dtype=np.float32),
+                            "extrinsics": np.asarray(o["extrinsics"], dtype=np.float32),
                             "agent": a, "t": t, "team": team_name,
                             "episode": u.episode.id})  # fmt: skip
         actions = execution.step(obs, info)
@@ -105,6 +108,8 @@ def _house(job: tuple[str, dict[str, int], str]) -> tuple[str, bytes]:
         "depth_mm": depth_mm,
         "cls": np.stack([f["cls"] for f in frames]),
         "instance": instances,
+        "intrinsics": np.stack([f["intrinsics"] for f in frames]),
+        "extrinsics": np.stack([f["extrinsics"] for f in frames]),
         "agent": np.array([f["agent"] for f in frames], dtype=np.int8),
         "t": np.array([f["t"] for f in frames], dtype=np.int16),
         "team": np.array([TEAMS.index(f["team"]) for f in frames], dtype=np.int8),
