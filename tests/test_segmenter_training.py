@@ -29,6 +29,7 @@ def _cfg(data, out, **kw):
 
 def test_a_tiny_segmenter_trains_resumes_and_loads(tiny_data, tmp_path, monkeypatch):
     from maniskill_tidy.models.checkpoints import load_segmenter
+    from maniskill_tidy.models.segmenter import predict
     from maniskill_tidy.training import segmenter_trainer as st
 
     card = st.train_segmenter(_cfg(tiny_data, tmp_path / "a"), progress=False)
@@ -66,6 +67,6 @@ def test_a_tiny_segmenter_trains_resumes_and_loads(tiny_data, tmp_path, monkeypa
 
     model = load_segmenter(tmp_path / "a")
     with np.load(sorted((tiny_data / "test").glob("*.npz"))[0]) as z:
-        labels, probs = st.predict(model, z["rgb"][:2], z["depth_mm"][:2] / 1000.0)
+        labels, probs = predict(model, z["rgb"][:2], z["depth_mm"][:2] / 1000.0)
     assert labels.shape == (2, 224, 224) and labels.dtype == np.uint8
     assert ((0 < probs) & (probs <= 1)).all()

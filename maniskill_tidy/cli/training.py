@@ -23,7 +23,8 @@ def widths(option: str, text: str | None, count: int = 4) -> dict:
         values = ()
     if len(values) != count or min(values) < 1:
         example = ",".join(str(16 * (i + 1)) for i in range(count))
-        raise ValueError(f"--{option} {text!r}: expected {count} positive channel counts, e.g. "
+        words = {4: "four", 5: "five"}.get(count, str(count))
+        raise ValueError(f"--{option} {text!r}: expected {words} positive channel counts, e.g. "
                          f"{example}")  # fmt: skip
     return {option.replace("-", "_"): values}
 

@@ -11,6 +11,7 @@ cores, full-resolution logits over ~100 classes cost more than the rest of the n
 
 from __future__ import annotations
 
+import numpy as np
 import torch
 from torch import nn
 from torch.nn import functional as F
@@ -62,3 +63,20 @@ class Segmenter(nn.Module):
 
     def config(self) -> dict:
         return {"classes": self.classes, "widths": list(self.widths)}
+
+
+def predict(model: Segmenter, rgb: np.ndarray, depth_m: np.ndarray, batch: int = 16):
+    """Labels (N, H, W) uint8 and the probability of each pixel's label (N, H, W) float32, at
+    the frames' resolution (nearest-upsampled from the network's half resolution). Each
+    frame's output depends on that frame alone (the network is in eval mode)."""
+    labels, probs = [], []
+    size = rgb.shape[1:3]
+    with torch.inference_mode():
+        for s in range(0, len(rgb), batch):
+            r = torch.from_numpy(np.array(rgb[s : s + batch])).permute(0, 3, 1, 2)
+            d = torch.from_numpy(np.array(depth_m[s : s + batch], dtype=np.float32))
+            d = d.reshape(len(d), 1, *size)
+            p, lab = F.softmax(model(r.float(), d), dim=1).max(dim=1)
+            labels.append(F.interpolate(lab[:, None].float(), size=size, mode="nearest")[:, 0])
+            probs.append(F.interpolate(p[:, None], size=size, mode="nearest")[:, 0])
+    return torch.cat(labels).numpy().astype(np.uint8), torch.cat(probs).numpy()

@@ -25,7 +25,7 @@ from tqdm import tqdm
 from maniskill_tidy.common.files import write_atomic
 from maniskill_tidy.eval.mask_ap import mask_ap
 from maniskill_tidy.models import checkpoints
-from maniskill_tidy.models.segmenter import Segmenter
+from maniskill_tidy.models.segmenter import Segmenter, predict
 from maniskill_tidy.perception.instances import Mask2D, split_instances
 from maniskill_tidy.perception.seg_classes import seg_classes
 
@@ -78,21 +78,6 @@ def _tensors(frames: dict, index: np.ndarray) -> tuple[torch.Tensor, torch.Tenso
     rgb = torch.from_numpy(frames["rgb"][index]).permute(0, 3, 1, 2).float()
     depth = torch.from_numpy(frames["depth_mm"][index].astype(np.float32) / 1000.0)[:, None]
     return rgb, depth
-
-
-def predict(model: Segmenter, rgb: np.ndarray, depth_m: np.ndarray, batch: int = 16):
-    """Labels (N, H, W) uint8 and the probability of each pixel's label (N, H, W) float32, at
-    the frames' resolution (nearest-upsampled from the network's half resolution)."""
-    labels, probs = [], []
-    with torch.inference_mode():
-        for s in range(0, len(rgb), batch):
-            r = torch.from_numpy(rgb[s : s + batch]).permute(0, 3, 1, 2).float()
-            d = torch.from_numpy(depth_m[s : s + batch].astype(np.float32))[:, None]
-            p, lab = F.softmax(model(r, d), dim=1).max(dim=1)
-            size = rgb.shape[1:3]
-            labels.append(F.interpolate(lab[:, None].float(), size=size, mode="nearest")[:, 0])
-            probs.append(F.interpolate(p[:, None], size=size, mode="nearest")[:, 0])
-    return torch.cat(labels).numpy().astype(np.uint8), torch.cat(probs).numpy()
 
 
 def truth_masks(cls: np.ndarray, instance: np.ndarray, pickupable: list[int]) -> list[Mask2D]:
