@@ -2,7 +2,7 @@
 PY := .venv/bin/python
 DEMO_DIR := out/demo
 
-.PHONY: setup test test-slow demo bench assets leaderboard leaderboard-v2 train-perception-v2 train train-all train-memory lint docs wheel-check clean
+.PHONY: segmenter-data train-segmenter setup test test-slow demo bench assets leaderboard leaderboard-v2 train-perception-v2 train train-all train-memory lint docs wheel-check clean
 
 setup:
 	@bash scripts/setup.sh
@@ -90,6 +90,21 @@ train-perception-v2: setup
 	test -f $(DATA120)/manifest.json || $(PY) -m maniskill_tidy.cli generate --houses 120 --seed 0 --workers 2 --out $(DATA120)
 	$(PY) -m maniskill_tidy.cli train perception --env HeteroTidy-v2 --dataset $(DATA120) --out agents/perception-v2 --work data/perception-v2
 	$(PY) -m maniskill_tidy.cli perception-report --agents agents/perception-v2 --dataset $(DATA120) --work data/perception-v2 --beside agents/perception
+
+# The pixels track's segmenter data (issue 82): frames of every house of data/tidy120 in both
+# looks, from the expert, the camera-only heuristic team and random look-arounds (Setting I:
+# cameras at 0.22, 0.9, 1.0 m), with the renderer's classes and instances as labels; one shard
+# per house (resumable), train / val / test by house. About 25 s per house and look on 2 cores.
+SEGMENTER_DATA ?= data/segmenter
+segmenter-data: setup
+	test -f $(DATA120)/manifest.json || $(PY) -m maniskill_tidy.cli generate --houses 120 --seed 0 --workers 2 --out $(DATA120)
+	for e in HeteroTidy-v2 HeteroTidy-v1; do $(PY) -m maniskill_tidy.cli segmenter-data --env $$e \
+	  --dataset $(DATA120) --out $(SEGMENTER_DATA)/$$e --workers 2 || exit 1; done
+
+# The segmenter per look on those frames (resumable per epoch): agents/segmenter-v2, -v1.
+train-segmenter: segmenter-data
+	$(PY) -m maniskill_tidy.cli train-segmenter --data $(SEGMENTER_DATA)/HeteroTidy-v2 --out agents/segmenter-v2
+	$(PY) -m maniskill_tidy.cli train-segmenter --data $(SEGMENTER_DATA)/HeteroTidy-v1 --out agents/segmenter-v1
 
 # The paper's learned model, on CPU. Perception (issue 12): render the views of the 120-house
 # dataset's houses (resumable per house), train every stage with and without the knowledge

@@ -22,6 +22,7 @@ def _eval(args: argparse.Namespace) -> int:
         seed=args.seed,
         task_type=args.task_type,
         env=args.env,
+        segmentation=args.segmentation,
     )
     summary = evaluate(
         cfg,
@@ -155,6 +156,13 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
         "--images",
         action="store_true",
         help="render every camera every step even for teams that ignore images (timing)",
+    )
+    ev.add_argument(
+        "--segmentation",
+        default="ground-truth",
+        help="ground-truth (the renderer's, the default), learned (the pixels track: agents see "
+        "RGB-D only, through the look's segmenter agents/segmenter-v1 or -v2), or a segmenter "
+        "folder (e.g. another look's); a pixels run is its own row, NAME-pixels",
     )
     ev.add_argument("--out", default=".", help="writes eval/results/... and recordings/... here")
     ev.set_defaults(func=_eval)

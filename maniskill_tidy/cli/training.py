@@ -13,7 +13,7 @@ TRAIN_DEFAULTS = {"dataset": "data/tidy120", "out": "agents/perception",
                   "scene_widths": None}  # fmt: skip
 
 
-def widths(option: str, text: str | None) -> dict:
+def widths(option: str, text: str | None, count: int = 4) -> dict:
     """``--visual-widths 16,32,48,64`` as TrainConfig's field (nothing: the shipped widths)."""
     if text is None:
         return {}
@@ -21,9 +21,11 @@ def widths(option: str, text: str | None) -> dict:
         values = tuple(int(v) for v in text.split(","))
     except ValueError:
         values = ()
-    if len(values) != 4 or min(values) < 1:
-        raise ValueError(f"--{option} {text!r}: expected four positive channel counts, e.g. "
-                         "16,32,48,64")  # fmt: skip
+    if len(values) != count or min(values) < 1:
+        example = ",".join(str(16 * (i + 1)) for i in range(count))
+        words = {4: "four", 5: "five"}.get(count, str(count))
+        raise ValueError(f"--{option} {text!r}: expected {words} positive channel counts, e.g. "
+                         f"{example}")  # fmt: skip
     return {option.replace("-", "_"): values}
 
 
@@ -56,6 +58,39 @@ def _demos(args: argparse.Namespace) -> int:
         f"wrote {m['trajectories']} trajectories ({m['steps']} steps, expert success "
         f"{m['expert_success']:.3f}) to {Path(args.out) / f'setting_{args.setting}' / args.split}"
     )
+    return 0
+
+
+def _segmenter_data(args: argparse.Namespace) -> int:
+    from maniskill_tidy.training.segmenter_data import SegDataConfig, build_segmenter_data
+
+    if args.every < 1 or args.max_steps < 1:
+        raise ValueError(f"--every {args.every}, --max-steps {args.max_steps}: expected >= 1")
+    for split in args.splits.split(","):
+        if split not in ("train", "val", "test"):
+            raise ValueError(f"--splits {args.splits!r}: expected train, val and/or test")
+        cfg = SegDataConfig(args.dataset, split, args.env, args.every, args.max_steps,
+                            args.houses)  # fmt: skip
+        m = build_segmenter_data(cfg, Path(args.out) / split, workers=args.workers)
+        print(f"{split}: {m['frames']} frames of {m['houses_done']} houses in "
+              f"{Path(args.out) / split} (data hash {m['data_hash'][:12]}, {m['seconds']:.0f} s)")
+    return 0
+
+
+def _train_segmenter(args: argparse.Namespace) -> int:
+    from maniskill_tidy.training.segmenter_trainer import SegTrainConfig, train_segmenter
+
+    if args.epochs < 1 or args.batch < 1 or not 16 <= args.crop <= 224 or args.crop % 2:
+        raise ValueError(f"--epochs {args.epochs}, --batch {args.batch}, --crop {args.crop}: "
+                         "expected at least 1, at least 1, an even size in 16..224")  # fmt: skip
+    extra = widths("widths", args.widths, count=5) if args.widths else {}
+    cfg = SegTrainConfig(args.data, args.out, epochs=args.epochs, batch=args.batch,
+                         crop=args.crop, seed=args.seed, **extra)  # fmt: skip
+    card = train_segmenter(cfg)
+    t, v = card["test"], card["val"]
+    print(f"{args.out}: best epoch {card['best_epoch']} of {args.epochs} "
+          f"({card['train_seconds']:.0f} s); val mask AP50 {v['AP50']:.3f}; test mask AP "
+          f"{t['AP']:.3f}, AP50 {t['AP50']:.3f} over {t['truth']} pickupable objects")  # fmt: skip
     return 0
 
 
@@ -170,6 +205,32 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     )
     env_option(dm)
     dm.set_defaults(func=_demos)
+
+    sd = sub.add_parser(
+        "segmenter-data",
+        help="frames with the renderer's masks and types, for the pixels track's segmenter",
+    )
+    sd.add_argument("--dataset", default="data/tidy120")
+    sd.add_argument("--splits", default="train,val,test")
+    sd.add_argument("--out", required=True, help="a folder per split is made in it")
+    sd.add_argument("--every", type=int, default=6, help="keep frames every N env steps")
+    sd.add_argument("--max-steps", type=int, default=120, help="steps played per episode")
+    sd.add_argument("--houses", type=int, help="only the first N houses of each split")
+    sd.add_argument("--workers", type=int, default=2)
+    env_option(sd)
+    sd.set_defaults(func=_segmenter_data, env="HeteroTidy-v2")
+
+    ts = sub.add_parser(
+        "train-segmenter", help="the pixels track's segmenter, on segmenter-data's frames (CPU)"
+    )
+    ts.add_argument("--data", required=True, help="segmenter-data's folder (train/, val/, test/)")
+    ts.add_argument("--out", required=True, help="e.g. agents/segmenter-v2")
+    ts.add_argument("--epochs", type=int, default=10)
+    ts.add_argument("--batch", type=int, default=16)
+    ts.add_argument("--crop", type=int, default=128, help="training crops, px (frames are 224)")
+    ts.add_argument("--widths", help="channels of the five levels (16,24,48,64,96)")
+    ts.add_argument("--seed", type=int, default=0)
+    ts.set_defaults(func=_train_segmenter)
 
     tr = sub.add_parser(
         "train", help="train learned modules: the paper's, QMIX, the object-memory team (CPU)"

@@ -31,6 +31,11 @@ Rules, applied to the agents one after the other in team order within a step:
 - ``Drop`` releases the held object where the gripper holds it; physics lets it fall, and it then
   counts as lying wherever it came to rest (a surface, or the floor).
 
+- A target can also be a pixel of the agent's current frame, ``Targeted(Action.PickUp, (x, y))``
+  (column x, row y, as AI2-THOR's): the object, or for PutDown the furniture, drawn there is
+  the target, then the same tests apply. An env made with ``targets="pixels"`` (the pixels
+  track, where no agent knows an instance id) takes only pixel targets and refuses id targets.
+
 Every failure is named in ``info["failed"][agent]``; a failed action still costs a step.
 """
 
@@ -70,12 +75,17 @@ NO_ROOM = "no room for"  # how a PutDown the whole surface had no room for fails
 MAX_STEPS = 300
 
 
+Pixel = tuple[int, int]  # (x, y): column and row of the agent's current frame
+TARGETS = ("ids", "pixels")  # what an env's Targeted actions may name
+
+
 @dataclass(frozen=True)
 class Targeted:
-    """An action with a named target: an object id, a furniture id or "furniture/surface"."""
+    """An action with a target: an object id, a furniture id or "furniture/surface", or a
+    pixel (x, y) of the agent's current frame."""
 
     action: int
-    target: str
+    target: str | Pixel
 
 
 @dataclass
@@ -109,9 +119,12 @@ def move_target(state: AgentState, action: Action) -> tuple[int, int]:
     return state.cell[0] + dr, state.cell[1] + dc
 
 
-def parse_action(value, n_actions: int, agent: str) -> tuple[Action, str | None]:
+def parse_action(
+    value, n_actions: int, agent: str, targets: str = "ids"
+) -> tuple[Action, str | Pixel | None]:
     """An int (Python, NumPy or an :class:`Action`) or a :class:`Targeted`, checked against the
-    agent's space. Floats, strings and booleans are refused, not converted."""
+    agent's space. Floats, strings and booleans are refused, not converted. ``targets``: what a
+    target may name (``"pixels"``: only a pixel)."""
     target = None
     if isinstance(value, Targeted):
         value, target = value.action, value.target
@@ -132,6 +145,18 @@ def parse_action(value, n_actions: int, agent: str) -> tuple[Action, str | None]
     action = Action(index)
     if target is not None and action not in (Action.PickUp, Action.PutDown):
         raise ValueError(f"{agent}: only PickUp and PutDown take a target, not {action.name}")
-    if target is not None and not isinstance(target, str):
-        raise TypeError(f"{agent}: a target is an id string, got {target!r}")
+    if target is None:
+        return action, None
+    if isinstance(target, tuple):
+        if len(target) != 2 or not all(
+            isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_))
+            for v in target
+        ):
+            raise TypeError(f"{agent}: a pixel target is (x, y), two integers; got {target!r}")
+        return action, (int(target[0]), int(target[1]))
+    if not isinstance(target, str):
+        raise TypeError(f"{agent}: a target is an id string or a pixel (x, y), got {target!r}")
+    if targets == "pixels":
+        raise ValueError(f"{agent}: {action.name} names {target!r}, an id; this env takes pixel "
+                         "targets only (the pixels track): Targeted(action, (x, y))")  # fmt: skip
     return action, target

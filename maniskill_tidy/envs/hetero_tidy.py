@@ -54,9 +54,11 @@ from maniskill_tidy.envs.actions import (
     HORIZON_RANGE,
     LOOK,
     MAX_STEPS,
+    TARGETS,
     TURN,
     Action,
     AgentState,
+    Pixel,
     move_target,
     parse_action,
 )
@@ -131,6 +133,7 @@ class HeteroTidyEnv(BaseEnv):
         hide_unseen_rooms: bool | None = None,
         render_size: tuple[int, int] = (640, 480),
         max_steps: int = MAX_STEPS,
+        targets: str = "ids",
         **kwargs,
     ) -> None:
         if quality not in QUALITIES:
@@ -139,6 +142,9 @@ class HeteroTidyEnv(BaseEnv):
             raise ValueError(f"visuals {visuals!r} is not one of {LOOKS}")
         if kwargs.get("num_envs", 1) != 1:
             raise ValueError("HeteroTidy-v1 simulates one house per env: num_envs must be 1")
+        if targets not in TARGETS:
+            raise ValueError(f"targets={targets!r}: expected one of {TARGETS}")
+        self.targets = targets  # "pixels": Targeted actions name pixels, never ids
         self.setting, self.team = setting_team(setting)
         self.agent_names = [f"agent_{i}" for i in range(len(self.team))]
         self.kinds = [robot_kind(c) for c in self.team]
@@ -412,7 +418,7 @@ class HeteroTidyEnv(BaseEnv):
         truncated = self._t >= self.max_steps and not terminated
         return obs, reward, terminated, truncated, info
 
-    def _check_actions(self, action) -> dict[str, tuple[Action, str | None]]:
+    def _check_actions(self, action) -> dict[str, tuple[Action, str | Pixel | None]]:
         if not isinstance(action, dict):
             raise TypeError(
                 f"actions must be a dict agent name -> action, got {type(action).__name__}"
@@ -424,11 +430,13 @@ class HeteroTidyEnv(BaseEnv):
         if missing:
             raise KeyError(f"no action for {missing}; every agent that has not stopped needs one")
         return {
-            name: parse_action(value, self.agents[self.agent_names.index(name)].n_actions, name)
+            name: parse_action(
+                value, self.agents[self.agent_names.index(name)].n_actions, name, self.targets
+            )
             for name, value in action.items()
         }
 
-    def _apply(self, i: int, act: Action, target: str | None) -> str | None:
+    def _apply(self, i: int, act: Action, target: str | Pixel | None) -> str | None:
         a = self.agents[i]
         if act in (Action.MoveAhead, Action.MoveRight, Action.MoveLeft):
             cell = move_target(a, act)
@@ -453,11 +461,15 @@ class HeteroTidyEnv(BaseEnv):
         self._place_robot(i)
         return None
 
-    def _manipulate(self, i: int, act: Action, target: str | None) -> str | None:
+    def _manipulate(self, i: int, act: Action, target: str | Pixel | None) -> str | None:
         a = self.agents[i]
         xy = np.asarray(self.hs.house.navgrid.center(*a.cell))
         seg = self._last_seg.get(a.name)
         counts = Counter() if seg is None else pixel_counts(seg)
+        if isinstance(target, tuple):
+            target, reason = self._pixel_target(act, seg, target)
+            if reason:
+                return reason
         if act == Action.PickUp:
             reason = self.manipulation.pick_up(a, xy, counts, target)
             if reason is None:
@@ -468,6 +480,20 @@ class HeteroTidyEnv(BaseEnv):
         if act == Action.PutDown:
             return self.manipulation.put_down(a, xy, counts, self._camera_matrices(a.name), target)
         return self.manipulation.drop(a)
+
+    def _pixel_target(self, act: Action, seg, pixel: Pixel) -> tuple[str | None, str | None]:
+        """The id drawn at a pixel of the agent's current frame: an object for PickUp, a piece
+        of furniture (or its door or drawer) for PutDown; or why there is none."""
+        x, y = pixel
+        h, w = self.camera_size[1], self.camera_size[0]
+        if not (0 <= x < w and 0 <= y < h):
+            return None, f"{act.name} at pixel {pixel}: outside the {w} x {h} frame"
+        sid = int(np.asarray(seg).reshape(h, w)[y, x]) if seg is not None else 0
+        inst = self.hs.instances.get(sid)
+        want = "object" if act == Action.PickUp else "furniture"
+        if inst is None or inst.kind != want:
+            return None, f"{act.name} at pixel {pixel}: no {want} drawn there"
+        return inst.id, None
 
     def preview(
         self, name: str, cell: tuple[int, int], rotation: int, horizon: int

@@ -17,6 +17,7 @@ channel, labels)`` (after) and ``finish(record)``.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from typing import Any
 
@@ -49,12 +50,26 @@ def _read_only(obs: dict) -> dict[str, np.ndarray]:
     return out
 
 
+def _pixels_only(obs: dict) -> dict:
+    """What a pixels-track agent may see of its observation (DESIGN.md, "Perception tracks"):
+    no segmentation, and of what it holds only whether it holds something."""
+    out = {k: v for k, v in obs.items() if k != "segmentation"}
+    if "held" in out:
+        out["held"] = np.int32(int(out["held"]) > 0)
+    return out
+
+
 class Execution:
-    """One team playing one episode: builds its agents and steps them decentrally."""
+    """One team playing one episode: builds its agents and steps them decentrally. A pixels
+    team (``team.pixels``) is given no instance table and observations without segmentation
+    or instance ids, whatever the env renders (recordings may want every image)."""
 
     def __init__(self, team: AnyTeam, env: Any, seed: int) -> None:
         self.team, self.env = team, env
+        self.pixels = bool(getattr(team, "pixels", False))
         public = PublicInfo.of(env, seed, oracle=getattr(team, "oracle", False))
+        if self.pixels:
+            public = dataclasses.replace(public, instances={})
         self.channel = Channel(public.agents, central=team.central)
         self.agents: dict[str, Agent] = {}
         self.central_node = None
@@ -95,7 +110,10 @@ class Execution:
             return self.team.act(info)
         active = [a.name for a in self.env.agents if not a.stopped]
         failed = info.get("failed", {})
-        views = {n: AgentView(n, self.t, _read_only(obs[n]), failed.get(n, "")) for n in active}
+        seen = _pixels_only if self.pixels else (lambda o: o)
+        views = {
+            n: AgentView(n, self.t, _read_only(seen(obs[n])), failed.get(n, "")) for n in active
+        }
         if self.t % self.decide_every:  # between the team's sub-goal steps
             acts = self._each("quiet_step", {n: (views[n], self.team.rounds) for n in active})
             if self.channel.step_messages:  # every sender named: the agents ran side by side

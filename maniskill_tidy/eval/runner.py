@@ -33,6 +33,7 @@ from maniskill_tidy.eval.episode import play_episode
 from maniskill_tidy.eval.metrics import EpisodeRecord, summarize
 from maniskill_tidy.policies import make_team, team_class
 from maniskill_tidy.policies.channel import CENTRAL
+from maniskill_tidy.policies.pixels import PIXELS_OBSERVATION
 
 RECORD_MODES = ("none", "failures", "all")
 ALL_IMAGES = "rgb+depth+segmentation"
@@ -48,6 +49,21 @@ class RunConfig:
     seed: int = 0
     task_type: str = "all"
     env: str = "HeteroTidy-v1"  # the version, i.e. the look (VERSIONS in maniskill_tidy)
+    # the perception track: "ground-truth" segmentation, or "learned" (the pixels track with
+    # the look's shipped segmenter, agents/segmenter-v1 or -v2) or a segmenter's folder
+    segmentation: str = "ground-truth"
+
+    @property
+    def pixels(self) -> bool:
+        return self.segmentation != "ground-truth"
+
+    def segmenter(self) -> str:
+        """The folder of the segmenter a pixels run uses."""
+        from maniskill_tidy.policies.learned import resolve
+
+        if self.segmentation == "learned":
+            return str(resolve(f"agents/segmenter-{self.env.rsplit('-', 1)[1]}"))
+        return str(resolve(self.segmentation))
 
     def env_kwargs(self, images: bool | str) -> dict:
         """``images``: True for every camera image, False for the team's own observation
@@ -56,10 +72,14 @@ class RunConfig:
         if isinstance(images, str):
             mode = images
         elif images:
-            mode = ALL_IMAGES
+            mode = ALL_IMAGES  # the runner strips what a pixels team may not see
+        elif self.pixels:
+            mode = PIXELS_OBSERVATION
         else:
             mode = team_cls.observations if team_cls.needs_images else "none"
+        pixels = {"targets": "pixels"} if self.pixels else {}
         return {
+            **pixels,
             "setting": getattr(team_cls, "team_override", None) or self.setting,
             "dataset": self.dataset,
             "split": self.split,
@@ -70,9 +90,24 @@ class RunConfig:
 
 
 def run_name(cfg: RunConfig) -> str:
-    """The team's name; a run on another env version than v1 is its own row (``expert-v2``)."""
+    """The team's name; a run on another env version than v1 is its own row (``expert-v2``),
+    and so is a pixels run (``memory-v2-pixels``; with another look's segmenter, its folder's
+    name after it: ``memory-v2-pixels-segmenter-v1``)."""
     name = team_class(cfg.policy).name
-    return name if cfg.env == "HeteroTidy-v1" else f"{name}-{cfg.env.rsplit('-', 1)[1]}"
+    name = name if cfg.env == "HeteroTidy-v1" else f"{name}-{cfg.env.rsplit('-', 1)[1]}"
+    if cfg.segmentation == "learned":
+        return f"{name}-pixels"
+    return f"{name}-pixels-{Path(cfg.segmentation).name}" if cfg.pixels else name
+
+
+def make_run_team(cfg: RunConfig):
+    """The team a run plays: in the pixels track, wrapped to see through the segmenter."""
+    team = make_team(cfg.policy)
+    if cfg.pixels:
+        from maniskill_tidy.policies.pixels import PixelsTeam
+
+        team = PixelsTeam(team, cfg.segmenter())
+    return team
 
 
 def run_dir(out: Path, cfg: RunConfig) -> Path:
@@ -96,7 +131,7 @@ _worker: dict = {}
 
 
 def _init_worker(cfg: RunConfig, images: bool, record: str, out: str):
-    _worker.update(cfg=cfg, env=make_env(cfg, images), team=make_team(cfg.policy))
+    _worker.update(cfg=cfg, env=make_env(cfg, images), team=make_run_team(cfg))
     _worker.update(record=record, out=out, images=images)
     return _close_worker
 
@@ -126,7 +161,7 @@ def _record_failures(cfg: RunConfig, records: list[EpisodeRecord], indices: dict
     failed = [r for r in records if not r.success]
     if not failed:
         return
-    env, team = make_env(cfg, images=True), make_team(cfg.policy)
+    env, team = make_env(cfg, images=True), make_run_team(cfg)
     for r in tqdm(failed, desc="recording failures", unit="ep"):
         run_episode(env, team, indices[r.episode], r.seed, _recorder(cfg, out))
     env.close()
@@ -231,6 +266,15 @@ def evaluate(
     missing = getattr(team_cls, "missing_model", lambda team: None)(members)
     if missing:  # before the run folder is made: nothing half-written
         raise FileNotFoundError(missing)
+    segmentation = "ground-truth"
+    if cfg.pixels:
+        from maniskill_tidy.models.checkpoints import verify, weights_sha256
+
+        if team_cls.privileged or not team_cls.needs_images:
+            raise ValueError(f"--segmentation {cfg.segmentation}: {cfg.policy} does not look "
+                             "through cameras; the pixels track is for camera-only teams")
+        verify(cfg.segmenter(), "make train-segmenter")
+        segmentation = f"learned:{weights_sha256(cfg.segmenter())}"
     # As the env does: the smallest setting that fits the team gives the starts (for SA, one
     # manipulator, that is Setting I's first start).
     episodes = EpisodeSet(cfg.dataset, cfg.split, cfg.task_type, None, members)
@@ -241,7 +285,7 @@ def evaluate(
     directory.mkdir(parents=True, exist_ok=True)
     with exclusive(directory):  # one run per results folder: two would both append
         config = {
-            **cfg.__dict__,
+            **{k: v for k, v in cfg.__dict__.items() if k != "segmentation" or cfg.pixels},
             "dataset_hash": episodes.dataset_hash,
             "episode_count": len(chosen),
         }
@@ -280,6 +324,7 @@ def evaluate(
             _record_failures(cfg, records, ids, out)
         summary = _summary(cfg, team_cls, members, episodes.dataset_hash, config, run, records,
                            workers, ray, images)  # fmt: skip
+        summary["segmentation"] = segmentation
         write_atomic(directory / "summary.json", json.dumps(summary, indent=1).encode())
         return summary
 
@@ -300,7 +345,8 @@ def _summary(
         "team": [list(c) for c in members],
         "communication": getattr(team_cls, "communication", "none"),
         "privileged": team_cls.privileged,
-        "perception": getattr(team_cls, "perception", ""),
+        "perception": ("learned segmenter from RGB-D (pixels track); " if cfg.pixels else "")
+        + getattr(team_cls, "perception", ""),
         "dataset": cfg.dataset or "default (shipped with the package)",
         "dataset_hash": dataset_hash,
         "model_hash": config.get("model_hash"),  # a learned team's weights; None otherwise

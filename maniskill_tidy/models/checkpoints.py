@@ -200,3 +200,17 @@ def memory_pointer(saved: dict) -> MemoryPointer:
     model = MemoryPointer(type_vectors(), **saved["sizes"])
     model.load_state_dict(float_state(saved["state"]))
     return model.eval()
+
+
+def save_segmenter(model, folder: Path) -> None:
+    save(folder, {"config": model.config(), "state": half_state(model)})
+
+
+def load_segmenter(folder: Path):
+    """The pixels track's segmenter (``models/segmenter.py``), in eval mode."""
+    from maniskill_tidy.models.segmenter import Segmenter
+
+    saved = read(folder, "maniskill-tidy train-segmenter")
+    model = Segmenter(saved["config"]["classes"], tuple(saved["config"]["widths"]))
+    model.load_state_dict(float_state(saved["state"]))
+    return model.eval()

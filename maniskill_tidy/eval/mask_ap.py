@@ -1,0 +1,65 @@
+"""Mask AP of predicted instances against the renderer's, by pycocotools' COCOeval.
+
+The pixels track's segmenter is scored as a detector is: per frame, its instances (class,
+mask, score) against the ground-truth instances of the same frame, matched at IoU thresholds
+0.5:0.95; AP, AP50, AP75 and AP by object size (COCO's area ranges, in pixels of our 224 px
+frames: small under 32^2, medium under 96^2). Only the classes asked for count (the pickupable
+types: what a team must find).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+from collections.abc import Iterable
+
+import numpy as np
+from pycocotools import mask as mask_utils
+from pycocotools.coco import COCO
+from pycocotools.cocoeval import COCOeval
+
+from maniskill_tidy.perception.instances import Mask2D
+
+KEYS = ("AP", "AP50", "AP75", "AP_small", "AP_medium", "AP_large")
+
+
+def _rle(mask: np.ndarray) -> dict:
+    rle = mask_utils.encode(np.asfortranarray(mask.astype(np.uint8)))
+    rle["counts"] = rle["counts"].decode("ascii")
+    return rle
+
+
+def mask_ap(
+    frames: Iterable[tuple[list[Mask2D], list[Mask2D]]], classes: Iterable[int], shape
+) -> dict[str, float]:
+    """``frames``: per frame (ground truth, predictions). Returns :data:`KEYS` (-1 where no
+    ground truth of that size exists, as COCOeval reports it) and the instance counts."""
+    classes = sorted(set(int(c) for c in classes))
+    images, gts, dts = [], [], []
+    for image_id, (truth, predicted) in enumerate(frames, start=1):
+        images.append({"id": image_id, "height": shape[0], "width": shape[1]})
+        for m in truth:
+            if m.cls in classes:
+                rle = _rle(m.mask)
+                gts.append({"id": len(gts) + 1, "image_id": image_id, "category_id": m.cls,
+                            "segmentation": rle, "area": float(m.area), "iscrowd": 0,
+                            "bbox": list(mask_utils.toBbox(rle))})  # fmt: skip
+        for m in predicted:
+            if m.cls in classes:
+                dts.append({"image_id": image_id, "category_id": m.cls,
+                            "segmentation": _rle(m.mask), "score": m.score})  # fmt: skip
+    counts = {"images": len(images), "truth": len(gts), "predicted": len(dts)}
+    if not gts or not dts:
+        return {**dict.fromkeys(KEYS, 0.0 if gts else -1.0), **counts}
+    coco = COCO()
+    coco.dataset = {"images": images, "annotations": gts,
+                    "categories": [{"id": c} for c in classes]}  # fmt: skip
+    with contextlib.redirect_stdout(io.StringIO()):  # pycocotools prints its progress
+        coco.createIndex()
+        result = coco.loadRes(dts)
+        ev = COCOeval(coco, result, iouType="segm")
+        ev.params.catIds = classes
+        ev.evaluate()
+        ev.accumulate()
+        ev.summarize()
+    return {**{k: round(float(v), 4) for k, v in zip(KEYS, ev.stats[:6], strict=True)}, **counts}

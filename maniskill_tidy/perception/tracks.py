@@ -1,0 +1,86 @@
+"""Objects associated across one agent's frames by type and position (the pixels track).
+
+With ground truth, an object's segmentation id names it in every frame. A segmenter gives
+per-frame masks with a class and nothing more, so an agent that remembers objects must decide
+itself which mask of this frame is which object seen before: here, the nearest track of the
+same class whose position lies within :data:`RADIUS` of the mask's back-projected median
+(each track matched once per frame, nearest pairs first), else a new track. Track ids are the
+agent's own labels (1, 2, ...): they carry no origin and mean nothing to another agent.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from maniskill_tidy.perception.instances import Mask2D
+from maniskill_tidy.perception.semantic_map import open3d_intrinsics, open3d_pose
+
+RADIUS = 0.3  # metres: one object's sightings fall this close together
+
+
+@dataclass
+class Track:
+    id: int
+    cls: int
+    position: np.ndarray  # world (x, y, z): the mean of its sightings' medians
+    sightings: int
+    last_step: int
+
+
+def mask_position(mask: np.ndarray, depth: np.ndarray, intrinsics, extrinsics) -> np.ndarray | None:
+    """The median world point of a mask's pixels with a depth (None if none has one)."""
+    d = depth.reshape(depth.shape[:2])
+    rows, cols = np.nonzero(mask & (d > 0))
+    if not len(rows):
+        return None
+    fx, fy, cx, cy = open3d_intrinsics(intrinsics).astype(np.float64)
+    z = d[rows, cols].astype(np.float64)
+    camera = np.stack([(cols - cx) * z / fx, (rows - cy) * z / fy, z])
+    pose = open3d_pose(extrinsics).astype(np.float64)
+    world = pose[:, :3] @ camera + pose[:, 3:]
+    return np.median(world, axis=1)
+
+
+class Tracker:
+    """One agent's tracks; :meth:`update` with each frame's masks."""
+
+    def __init__(self, radius: float = RADIUS) -> None:
+        self.radius = radius
+        self.tracks: dict[int, Track] = {}
+
+    def update(
+        self, masks: list[Mask2D], depth: np.ndarray, intrinsics, extrinsics, step: int
+    ) -> list[tuple[Mask2D, Track]]:
+        """Each mask with a world position, paired with the track it continues or starts."""
+        located = []
+        for m in masks:
+            p = mask_position(m.mask, depth, intrinsics, extrinsics)
+            if p is not None:
+                located.append((m, p))
+        pairs = []  # (distance, mask index, track id) of every admissible match
+        for i, (m, p) in enumerate(located):
+            for t in self.tracks.values():
+                if t.cls == m.cls:
+                    dist = float(np.linalg.norm(t.position - p))
+                    if dist <= self.radius:
+                        pairs.append((dist, i, t.id))
+        matched: dict[int, int] = {}
+        taken: set[int] = set()
+        for _, i, tid in sorted(pairs):
+            if i not in matched and tid not in taken:
+                matched[i] = tid
+                taken.add(tid)
+        out = []
+        for i, (m, p) in enumerate(located):
+            if i in matched:
+                t = self.tracks[matched[i]]
+                t.position = (t.position * t.sightings + p) / (t.sightings + 1)
+                t.sightings += 1
+                t.last_step = step
+            else:
+                t = Track(len(self.tracks) + 1, m.cls, p, 1, step)
+                self.tracks[t.id] = t
+            out.append((m, t))
+        return out

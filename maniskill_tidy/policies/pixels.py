@@ -1,0 +1,258 @@
+"""The pixels track: any camera-only team, seeing through a learned segmenter.
+
+A pixels agent receives RGB, depth, its pose and camera matrices, whether it holds something,
+and nothing else: no segmentation, no instance id (DESIGN.md, "Perception tracks"; the runner
+enforces it, ``eval/episode.py``). :class:`PixelsAgent` wraps the team's own agent and gives it
+what it would read in the ground-truth track, made from the agent's own frame alone:
+
+- a segmentation image of ids from the agent's *own* label table, made before the episode
+  (the maps build their label table once): floor, wall, ceiling and robot by class only;
+  each piece of furniture of the public floor plan (its id is public); and per pickupable type
+  a block of slots for the objects this agent comes to track;
+- masks from the segmenter (``models/segmenter.py``), instances from masks split at depth
+  jumps (``perception/instances.py``), furniture named by the nearest piece of its type on the
+  floor plan, objects associated across frames by type and position (``perception/tracks.py``);
+- ``held``: the slot of the object its last successful PickUp aimed at.
+
+Its PickUp and PutDown targets become a pixel of the current frame (the env resolves it,
+``targets="pixels"``): the pixel of the named object's mask nearest the mask's middle, or for a
+surface, the pixel of that furniture's mask whose point lies nearest the surface. A target not
+in view is aimed at no pixel (the env names the failure, as for an id not in view).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import ClassVar
+
+import numpy as np
+
+from maniskill_tidy.envs.actions import Action, Targeted
+from maniskill_tidy.perception.instances import split_instances
+from maniskill_tidy.perception.seg_classes import STRUCTURE, seg_classes
+from maniskill_tidy.perception.tracks import Tracker, mask_position
+from maniskill_tidy.policies.base import Agent, AgentView, PublicInfo, Team
+from maniskill_tidy.policies.channel import Outbox
+from maniskill_tidy.sim.house_scene import Instance
+
+SLOTS = 48  # objects one agent may track per pickupable type
+FURNITURE_BASE = 16
+OBJECT_BASE = 1024
+FURNITURE_MATCH = 1.0  # metres from a mask's point to the nearest footprint of its type
+HOLD_RANGE = 0.8  # metres from the camera: a mask of the held type this close is the held one
+OWN_BODY = 0.45  # metres (horizontal) from the camera: a robot this close is the agent itself
+PIXELS_OBSERVATION = "rgb+depth"
+
+
+class Segmenter:
+    """The shipped weights of one look, loaded once per process and shared by its agents."""
+
+    _loaded: ClassVar[dict] = {}
+
+    def __init__(self, folder: str) -> None:
+        from maniskill_tidy.models.checkpoints import load_segmenter, weights_sha256
+
+        if folder not in self._loaded:
+            self._loaded[folder] = (load_segmenter(folder), weights_sha256(folder))
+        self.model, self.sha256 = self._loaded[folder]
+
+    def __call__(self, rgb: np.ndarray, depth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        from maniskill_tidy.models.segmenter import predict
+
+        labels, probs = predict(self.model, rgb[None], depth.reshape(1, *depth.shape[:2]))
+        return labels[0], probs[0]
+
+
+class LabelTable:
+    """One agent's segmentation ids and what each names, fixed before the episode starts."""
+
+    def __init__(self, public: PublicInfo) -> None:
+        c = seg_classes()
+        self.classes = c
+        self.instances: dict[int, Instance] = {}
+        self.structure = {}
+        for i, kind in enumerate(STRUCTURE, start=1):
+            self.structure[c.index[kind]] = i
+            self.instances[i] = Instance(i, kind, kind.capitalize(), kind)
+        self.furniture = {}  # furniture id -> seg id
+        for i, f in enumerate(public.house.furniture):
+            sid = FURNITURE_BASE + i
+            self.furniture[f.id] = sid
+            self.instances[sid] = Instance(sid, "furniture", f.type, f.id)
+        self.slots = {t: 0 for t in c.pickupable}  # next free slot per type
+        for k, t in enumerate(c.pickupable):
+            for slot in range(SLOTS):
+                sid = OBJECT_BASE + k * SLOTS + slot
+                self.instances[sid] = Instance(sid, "object", t, f"{t}#{slot}")
+        self.by_track: dict[int, int] = {}  # track id -> seg id
+        self.by_id = {inst.id: sid for sid, inst in self.instances.items()}
+
+    def object_id(self, track) -> int:
+        """The slot of a track (a new one for a new track; the oldest reused when full)."""
+        if track.id not in self.by_track:
+            t = self.classes.names[track.cls]
+            k = self.classes.pickupable.index(t)
+            slot = self.slots[t] % SLOTS
+            self.slots[t] += 1
+            sid = OBJECT_BASE + k * SLOTS + slot
+            self.by_track = {tid: s for tid, s in self.by_track.items() if s != sid}
+            self.by_track[track.id] = sid
+        return self.by_track[track.id]
+
+
+class PixelsAgent(Agent):
+    """A camera-only agent seeing through the segmenter (see the module's docstring)."""
+
+    def __init__(self, inner_factory, name: str, public: PublicInfo, outbox: Outbox,
+                 segmenter: Segmenter) -> None:  # fmt: skip
+        super().__init__(name, public, outbox)
+        self.table = LabelTable(public)
+        self.segmenter, self.tracker = segmenter, Tracker()
+        own = dataclasses.replace(public, instances=self.table.instances)
+        self.inner = inner_factory(name, own, outbox)
+        self.decide_every = self.inner.decide_every
+        self.house = public.house
+        self.held = 0  # seg id of what this agent believes it holds
+        self.seg = None  # this frame's predicted ids
+        self.points = None  # this frame's back-projection inputs
+        self.aimed: int | None = None  # the seg id of the last PickUp's target
+
+    # ------------------------------------------------------------------ perception
+    def _frame(self, obs: dict, step: int) -> np.ndarray:
+        c = self.table.classes
+        depth = np.asarray(obs["depth"], dtype=np.float32).reshape(obs["rgb"].shape[:2])
+        labels, probs = self.segmenter(np.asarray(obs["rgb"]), depth)
+        seg = np.zeros(labels.shape, dtype=np.int32)
+        robot = c.index["robot"]
+        for cls, sid in self.table.structure.items():
+            if cls != robot:
+                seg[labels == cls] = sid
+        K, E = obs["intrinsics"], obs["extrinsics"]
+        camera = -np.asarray(E)[:3, :3].T @ np.asarray(E)[:3, 3]
+        for m in split_instances(labels, depth, [robot], probs):
+            p = mask_position(m.mask, depth, K, E)
+            if p is not None and np.hypot(*(p - camera)[:2]) > OWN_BODY:  # not its own base
+                seg[m.mask] = self.table.structure[robot]
+        furniture = [i for i in range(len(c.names)) if c.names[i].startswith("furniture:")]
+        for m in split_instances(labels, depth, furniture, probs):
+            fid = self._furniture_at(c.names[m.cls].split(":", 1)[1], m.mask, depth, K, E)
+            if fid is not None:
+                seg[m.mask] = self.table.furniture[fid]
+        objects = [i for i in range(len(c.names)) if c.is_pickupable(i)]
+        masks = split_instances(labels, depth, objects, probs)
+        for m, track in self.tracker.update(masks, depth, K, E, step):
+            sid = self.table.object_id(track)
+            if self.held and self._is_held(m, track, depth, K, E):
+                sid = self.held
+            seg[m.mask] = sid
+        self.points = (depth, K, E)
+        return seg
+
+    def _furniture_at(self, type_name: str, mask, depth, K, E) -> str | None:
+        p = mask_position(mask, depth, K, E)
+        if p is None:
+            return None
+        best, dist = None, FURNITURE_MATCH
+        for f in self.house.furniture:
+            if f.type != type_name:
+                continue
+            x0, y0, x1, y1 = f.footprint()
+            d = float(np.hypot(max(x0 - p[0], 0, p[0] - x1), max(y0 - p[1], 0, p[1] - y1)))
+            if d <= dist:
+                best, dist = f.id, d
+        return best
+
+    def _is_held(self, m, track, depth, K, E) -> bool:
+        held_type = self.table.instances[self.held].type
+        if self.table.classes.names[m.cls] != held_type:
+            return False
+        camera = -np.asarray(E)[:3, :3].T @ np.asarray(E)[:3, 3]
+        p = mask_position(m.mask, depth, K, E)
+        return p is not None and float(np.linalg.norm(p - camera)) <= HOLD_RANGE
+
+    def observe(self, view: AgentView) -> None:
+        if self.aimed is not None and not view.failed:  # the last PickUp took what it aimed at
+            self.held = self.aimed
+        if not int(view.obs.get("held", 0)):
+            self.held = 0
+        self.aimed = None
+        self.seg = self._frame(view.obs, view.step)
+        obs = dict(view.obs, segmentation=self.seg, held=np.int32(self.held))
+        self.inner.observe(dataclasses.replace(view, obs=obs))
+
+    # ------------------------------------------------------------------ acting
+    def send(self, round: int, inbox) -> None:
+        self.inner.send(round, inbox)
+
+    def act(self, inbox) -> object:
+        return self._aim(self.inner.act(inbox))
+
+    def _aim(self, action):
+        if not isinstance(action, Targeted):
+            if action == Action.PickUp:  # plain: the env takes the object covering most pixels
+                self.aimed = self._largest_object()
+            return action
+        if action.action == Action.PickUp:
+            sid = self.table.by_id.get(action.target)
+            self.aimed = sid
+            return Targeted(action.action, self._pixel(sid))
+        fid, _, surface = str(action.target).partition("/")
+        return Targeted(action.action, self._pixel(self.table.furniture.get(fid), surface, fid))
+
+    def _largest_object(self) -> int | None:
+        ids, counts = np.unique(self.seg[self.seg >= OBJECT_BASE], return_counts=True)
+        return int(ids[np.argmax(counts)]) if len(ids) else None
+
+    def _pixel(self, sid: int | None, surface: str = "", fid: str = "") -> tuple[int, int]:
+        """A pixel of ``sid``'s mask in this frame: nearest its middle, or for a surface, the
+        one whose point lies nearest the surface's centre; (-1, -1) if it is not in view."""
+        if sid is None or self.seg is None:
+            return (-1, -1)
+        rows, cols = np.nonzero(self.seg == sid)
+        if not len(rows):
+            return (-1, -1)
+        if surface:
+            s = self.house.furniture_by_id()[fid].surface(surface)
+            depth, K, E = self.points
+            from maniskill_tidy.perception.semantic_map import open3d_intrinsics, open3d_pose
+
+            fx, fy, cx, cy = open3d_intrinsics(K).astype(np.float64)
+            z = depth[rows, cols].astype(np.float64)
+            pose = open3d_pose(E).astype(np.float64)
+            pts = pose[:, :3] @ np.stack([(cols - cx) * z / fx, (rows - cy) * z / fy, z])
+            pts = pts + pose[:, 3:]
+            k = int(np.argmin(np.linalg.norm(pts.T - np.asarray(s.center), axis=1)))
+        else:
+            k = int(np.argmin((rows - rows.mean()) ** 2 + (cols - cols.mean()) ** 2))
+        return int(cols[k]), int(rows[k])
+
+    def label(self):
+        return self.inner.label()
+
+    def trace(self) -> dict:
+        return self.inner.trace()
+
+
+class PixelsTeam(Team):
+    """``inner`` (a camera-only team) in the pixels track, with the segmenter in ``weights``."""
+
+    observations: ClassVar[str] = PIXELS_OBSERVATION
+    targets: ClassVar[str] = "pixels"
+    pixels: ClassVar[bool] = True
+
+    def __init__(self, inner: Team, weights: str) -> None:
+        if inner.privileged or not inner.needs_images:
+            raise ValueError(f"{inner.name}: only a camera-only team plays the pixels track")
+        self.inner, self.segmenter = inner, Segmenter(weights)
+        self.name = inner.name
+        for attr in ("communication", "central", "rounds", "team_override", "rules"):
+            setattr(self, attr, getattr(inner, attr))
+        self.perception = f"learned segmenter {self.segmenter.sha256[:12]} (pixels track); " + (
+            inner.perception.replace("ground-truth segmentation", "predicted masks")
+        )
+
+    def make_agent(self, name: str, public: PublicInfo, outbox: Outbox) -> Agent:
+        return PixelsAgent(self.inner.make_agent, name, public, outbox, self.segmenter)
+
+    def make_central(self, public: PublicInfo, outbox: Outbox):
+        return self.inner.make_central(public, outbox)

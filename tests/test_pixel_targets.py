@@ -1,0 +1,68 @@
+"""PickUp and PutDown aimed at a pixel of the agent's own frame (the pixels track), and an env
+that takes pixel targets only."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from maniskill_tidy.envs.actions import Action, Targeted
+from maniskill_tidy.envs.hetero_tidy import HeteroTidyEnv
+
+
+def _pixel_of(seg: np.ndarray, sid: int) -> tuple[int, int]:
+    rows, cols = np.nonzero(seg.reshape(seg.shape[:2]) == sid)
+    k = np.argmin((rows - rows.mean()) ** 2 + (cols - cols.mean()) ** 2)  # a pixel of the mask
+    return int(cols[k]), int(rows[k])
+
+
+def test_the_expert_tidies_with_pixel_targets_instead_of_ids():
+    """The expert's named PickUp and PutDown targets, replaced by a pixel of that object or
+    furniture in the acting agent's frame, pick and place the same things."""
+    from maniskill_tidy.eval.episode import Execution
+    from maniskill_tidy.policies import make_team
+
+    env = HeteroTidyEnv(setting="I", split="test", obs_mode="rgb+depth+segmentation")
+    try:
+        obs, info = env.reset(seed=0, options={"episode": 0})
+        execution = Execution(make_team("expert"), env, 0)
+        ids = {inst.id: sid for sid, inst in env.instances.items()}
+        aimed = {"PickUp": 0, "PutDown": 0}
+        done = False
+        while not done:
+            actions = execution.step(obs, info)
+            for name, act in actions.items():
+                if isinstance(act, Targeted) and isinstance(act.target, str):
+                    kind = Action(act.action).name
+                    fid = act.target.split("/")[0]  # a surface: aim at its piece of furniture
+                    sid = ids.get(act.target, ids.get(fid))
+                    seg = obs[name]["segmentation"]
+                    if sid is not None and (seg == sid).sum() > 0:
+                        actions[name] = Targeted(act.action, _pixel_of(seg, sid))
+                        aimed[kind] += 1
+            obs, _, terminated, truncated, info = env.step(actions)
+            done = terminated or truncated
+        assert aimed["PickUp"] >= 1 and aimed["PutDown"] >= 1, aimed
+        assert info["success"], "the episode the expert solves with ids, solved with pixels"
+    finally:
+        env.close()
+
+
+def test_a_pixels_env_refuses_id_targets_and_names_a_bad_pixel():
+    env = HeteroTidyEnv(setting="I", split="test", obs_mode="rgb+depth", targets="pixels")
+    try:
+        obs, _ = env.reset(seed=0, options={"episode": 0})
+        assert "segmentation" not in obs["agent_2"]
+        some = {n: int(Action.LookDown) for n in env.agent_names}
+        with pytest.raises(ValueError, match="pixel targets only"):
+            env.step(some | {"agent_2": Targeted(Action.PickUp, "Apple_0")})
+        with pytest.raises(TypeError, match=r"\(x, y\), two integers"):
+            env.step(some | {"agent_2": Targeted(Action.PickUp, (1.5, 2))})
+        _, _, _, _, info = env.step(some | {"agent_2": Targeted(Action.PickUp, (500, 3))})
+        assert "outside the 224 x 224 frame" in info["failed"]["agent_2"]
+        _, _, _, _, info = env.step(some | {"agent_2": Targeted(Action.PickUp, (112, 2))})
+        assert "no object drawn there" in info["failed"]["agent_2"]
+    finally:
+        env.close()
+    with pytest.raises(ValueError, match="targets='names'"):
+        HeteroTidyEnv(setting="I", split="test", targets="names")

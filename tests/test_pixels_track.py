@@ -1,0 +1,137 @@
+"""The pixels track: what a pixels team's agents receive (no segmentation, no instance id),
+a tiny segmenter's masks feeding a camera-only team's map, and runs that are their own rows
+and replay."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from maniskill_tidy.policies.base import Agent, Team
+
+
+class SpyAgent(Agent):
+    seen: list = []
+
+    def observe(self, view) -> None:
+        self.seen.append((self.name, set(view.obs), int(view.obs.get("held", 0)),
+                          dict(self.public.instances)))  # fmt: skip
+
+    def act(self, inbox):
+        return 8 if self.public.capability(self.name)[1] else 3  # PickUp, or turn
+
+
+class SpyTeam(Team):
+    name = "spy"
+
+    def make_agent(self, name, public, outbox):
+        return SpyAgent(name, public, outbox)
+
+
+class PixelsSpyTeam(SpyTeam):
+    pixels = True
+
+
+@pytest.mark.parametrize("team_cls, pixels", [(SpyTeam, False), (PixelsSpyTeam, True)])
+def test_a_pixels_team_receives_no_segmentation_and_no_instance_id(team_cls, pixels):
+    """The env renders every image (as for a recording); the runner passes a pixels team none
+    of the renderer's labels, and held as a flag only."""
+    from maniskill_tidy.envs.hetero_tidy import HeteroTidyEnv
+    from maniskill_tidy.eval.episode import Execution
+    from maniskill_tidy.eval.runner import ALL_IMAGES
+
+    env = HeteroTidyEnv(setting="I", split="test", obs_mode=ALL_IMAGES)
+    SpyAgent.seen = []
+    try:
+        obs, info = env.reset(seed=0, options={"episode": 0})
+        execution = Execution(team_cls(), env, 0)
+        for _ in range(6):
+            obs, _, _, _, info = env.step(execution.step(obs, info))
+        held = [int(v) for v in env.get_obs()["agent_2"]["held"].reshape(-1)]
+    finally:
+        env.close()
+    keys = set.union(*(k for _, k, _, _ in SpyAgent.seen))
+    tables = [t for *_, t in SpyAgent.seen]
+    if pixels:
+        assert "segmentation" not in keys and {"rgb", "depth", "pose", "intrinsics"} <= keys
+        assert all(t == {} for t in tables)
+        assert {h for _, _, h, _ in SpyAgent.seen} <= {0, 1}
+    else:  # the ground-truth track: the renderer's labels, as before
+        assert "segmentation" in keys and all(len(t) > 10 for t in tables)
+    assert held  # the env itself still knows the id
+
+
+@pytest.fixture(scope="module")
+def segmenter(tmp_path_factory):
+    """A tiny segmenter trained on one house per split (a few seconds; it sees little)."""
+    from maniskill_tidy.training.segmenter_data import SegDataConfig, build_segmenter_data
+    from maniskill_tidy.training.segmenter_trainer import SegTrainConfig, train_segmenter
+
+    root = tmp_path_factory.mktemp("pixels")
+    for split in ("train", "val", "test"):
+        cfg = SegDataConfig(None, split, "HeteroTidy-v1", every=3, max_steps=13, houses=1)
+        build_segmenter_data(cfg, root / "data" / split, progress=False)
+    cfg = SegTrainConfig(str(root / "data"), str(root / "segmenter-tiny"), epochs=3, batch=4,
+                         crop=96, widths=(8, 12, 16, 16, 16))  # fmt: skip
+    train_segmenter(cfg, progress=False)
+    return root / "segmenter-tiny"
+
+
+def _play(segmenter, steps: int):
+    """A pixels heuristic team's first steps: (its agent_1, every step's actions and info)."""
+    from maniskill_tidy.envs.hetero_tidy import HeteroTidyEnv
+    from maniskill_tidy.eval.episode import Execution
+    from maniskill_tidy.policies import make_team
+    from maniskill_tidy.policies.pixels import PixelsTeam
+
+    env = HeteroTidyEnv(setting="I", split="test", obs_mode="rgb+depth", targets="pixels")
+    trace = []
+    try:
+        obs, info = env.reset(seed=0, options={"episode": 0})
+        execution = Execution(PixelsTeam(make_team("heuristic-none"), str(segmenter)), env, 0)
+        for _ in range(steps):
+            actions = execution.step(obs, info)
+            obs, _, _, _, info = env.step(actions)
+            trace.append((actions, info["failed"]))
+        return execution.agents["agent_1"], obs, trace
+    finally:
+        env.close()
+
+
+def test_predicted_masks_feed_a_heuristic_agents_map_and_replay(segmenter):
+    agent, obs, trace = _play(segmenter, 8)
+    _, _, again = _play(segmenter, 8)
+    assert trace == again  # same seed, same pixels team, same steps
+    assert "segmentation" not in obs["agent_1"]
+    ids = set(np.unique(agent.seg).tolist())
+    assert ids - {0} and ids <= set(agent.table.instances) | {0}
+    voxels = agent.inner.map.voxels  # its map, built from the predicted ids' labels
+    assert agent.inner.map.frames == 8 and (voxels > 0).sum() > 100
+    assert agent.inner.map.explored.any()
+
+
+@pytest.mark.slow  # two whole heuristic episodes through a segmenter: minutes
+def test_a_pixels_run_is_its_own_row_records_its_segmenter_and_replays(segmenter, tmp_path):
+    from maniskill_tidy.eval.runner import RunConfig, evaluate
+
+    cfg = RunConfig("heuristic-none", "I", "test", None, episodes=1,
+                    segmentation=str(segmenter))  # fmt: skip
+    a = evaluate(cfg, tmp_path / "a", workers=1, progress=False)
+    sha = json.loads((segmenter / "card.json").read_text())["weights_sha256"]
+    assert a["segmentation"] == f"learned:{sha}" and a["obs_mode"] == "rgb+depth"
+    assert a["policy"] == "heuristic-none-pixels-segmenter-tiny"
+    evaluate(cfg, tmp_path / "b", workers=1, progress=False)
+    rows = [
+        [json.loads(line) for line in (t / "eval/results/setting_I" / a["policy"] /
+                                       "episodes.jsonl").read_text().splitlines()]
+        for t in (tmp_path / "a", tmp_path / "b")
+    ]  # fmt: skip
+    for r in rows:
+        for rec in r:
+            rec.pop("seconds")
+    assert rows[0] == rows[1]  # same seed, same pixels-team records
+    with pytest.raises(ValueError, match="camera-only"):
+        expert = RunConfig("expert", "I", "test", None, episodes=1, segmentation=str(segmenter))
+        evaluate(expert, tmp_path / "c", progress=False)

@@ -1,0 +1,134 @@
+"""Frames for the pixels track's segmenter: the renderer's labels as classes and instances,
+one shard per house, resumable, the same data from the same dataset."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from maniskill_tidy.perception.seg_classes import STRUCTURE, seg_classes
+from maniskill_tidy.training.segmenter_data import TEAMS, SegDataConfig, build_segmenter_data
+
+
+def test_the_class_table_covers_structure_furniture_and_every_pickupable_type():
+    from maniskill_tidy.houses.furniture import TEMPLATES
+    from maniskill_tidy.knowledge import load_catalog
+
+    c = seg_classes()
+    assert c.names[0] == "background" and c.names[1 : 1 + len(STRUCTURE)] == STRUCTURE
+    assert set(c.pickupable) == set(load_catalog().pickupable)
+    assert {f"furniture:{t}" for t in TEMPLATES} <= set(c.names)
+    assert len(set(c.names)) == len(c.names) <= 255
+    apple = c.of_instance("object", "Apple")
+    assert c.is_pickupable(apple) and not c.is_pickupable(c.of_instance("furniture", "Sofa"))
+    assert c.of_instance("ceiling", "Kitchen") == c.index["ceiling"]
+    with pytest.raises(ValueError, match="instance kind 'lamp'"):
+        c.of_instance("lamp", "x")
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    out = tmp_path_factory.mktemp("segdata") / "test"
+    cfg = SegDataConfig(None, "test", "HeteroTidy-v1", every=6, max_steps=7, houses=1)
+    return cfg, out, build_segmenter_data(cfg, out, progress=False)
+
+
+def test_a_house_shard_holds_frames_with_consistent_labels(tiny):
+    _, out, manifest = tiny
+    shards = sorted(out.glob("house_*.npz"))
+    assert len(shards) == 1 and manifest["houses_done"] == 1
+    c = seg_classes()
+    with np.load(shards[0]) as z:
+        n = len(z["agent"])
+        assert n == manifest["frames"] == len(TEAMS) * 2 * 3  # 2 kept steps, 3 agents
+        assert z["rgb"].shape == (n, 224, 224, 3) and z["rgb"].dtype == np.uint8
+        assert z["depth_mm"].dtype == np.uint16 and z["depth_mm"].max() > 500
+        assert sorted(set(z["team"].tolist())) == [0, 1, 2]
+        cls, inst = z["cls"], z["instance"]
+        assert ((cls == 0) == (inst == 0)).all()  # background exactly where nothing is drawn
+        owner: dict[int, set[int]] = {}
+        for i in np.unique(inst[inst > 0]):
+            owner[int(i)] = set(np.unique(cls[inst == i]).tolist())
+        assert all(len(v) == 1 for v in owner.values())  # one class per instance
+        seen = {next(iter(v)) for v in owner.values()}
+        assert {c.index["floor"], c.index["wall"]} <= seen
+        assert any(c.is_pickupable(k) for k in seen)  # some object is in some frame
+        meta = json.loads(str(z["meta"]))
+        assert set(meta["episodes"]) == set(TEAMS)
+        assert len(meta["instance_ids"]) == len(owner)
+
+
+def test_a_rerun_resumes_and_names_the_same_data(tiny, tmp_path):
+    cfg, out, manifest = tiny
+    again = build_segmenter_data(cfg, out, progress=False)  # nothing left to render
+    assert again["data_hash"] == manifest["data_hash"]
+    assert again["seconds"] == manifest["seconds"]
+    with pytest.raises(ValueError):  # another config into the same folder is refused
+        build_segmenter_data(SegDataConfig(None, "test", "HeteroTidy-v1", every=3, max_steps=7,
+                                           houses=1), out, progress=False)  # fmt: skip
+
+
+@pytest.mark.slow
+def test_the_same_dataset_renders_the_same_frames(tiny, tmp_path):
+    cfg, _, manifest = tiny
+    assert build_segmenter_data(cfg, tmp_path / "b", progress=False)["data_hash"] == (
+        manifest["data_hash"]
+    )
+
+
+def test_instances_split_at_depth_jumps_and_score_a_perfect_prediction_at_ap_one(tiny):
+    from maniskill_tidy.eval.mask_ap import mask_ap
+    from maniskill_tidy.perception.instances import Mask2D, split_instances
+
+    # two boxes of one class side by side, one 1 m behind the other: two instances
+    labels = np.zeros((40, 40), dtype=np.uint8)
+    labels[10:20, 5:20] = labels[10:20, 20:35] = 7
+    depth = np.full((40, 40), 3.0, dtype=np.float32)
+    depth[10:20, 5:20], depth[10:20, 20:35] = 1.0, 2.0
+    parts = split_instances(labels, depth, [7])
+    assert sorted(p.area for p in parts) == [150, 150] and {p.cls for p in parts} == {7}
+    depth[10:20, 20:35] = 1.02  # the same surface: one instance
+    assert [p.area for p in split_instances(labels, depth, [7])] == [300]
+
+    _, out, _ = tiny
+    c = seg_classes()
+    pickupable = [i for i in range(len(c.names)) if c.is_pickupable(i)]
+    with np.load(sorted(out.glob("house_*.npz"))[0]) as z:
+        truth = []
+        for inst, cls in zip(z["instance"], z["cls"], strict=True):
+            truth.append([Mask2D(int(cls[inst == i][0]), inst == i, 1.0)
+                          for i in np.unique(inst[inst > 0])])  # fmt: skip
+    frames = [(t, t) for t in truth]
+    perfect = mask_ap(frames, pickupable, (224, 224))
+    assert perfect["truth"] > 0 and perfect["AP"] == perfect["AP50"] == 1.0
+    # every prediction given the wrong class: nothing matches
+    wrong = [(t, [Mask2D(pickupable[(pickupable.index(m.cls) + 1) % len(pickupable)]
+                         if m.cls in pickupable else m.cls, m.mask, 1.0) for m in t])
+             for t in truth]  # fmt: skip
+    assert mask_ap(wrong, pickupable, (224, 224))["AP50"] == 0.0
+    # half of the instances missed: recall, and so AP, falls
+    half = [(t, t[::2]) for t in truth]
+    assert 0.0 < mask_ap(half, pickupable, (224, 224))["AP50"] < 1.0
+
+
+def test_the_segmenter_gives_class_logits_at_half_resolution_and_learns():
+    import torch
+
+    from maniskill_tidy.models.segmenter import Segmenter
+
+    torch.manual_seed(0)
+    model = Segmenter(5, widths=(8, 8, 16, 16, 16))
+    rgb, depth = torch.rand(2, 3, 64, 64) * 255, torch.rand(2, 1, 64, 64) * 4
+    assert model(rgb, depth).shape == (2, 5, 32, 32)
+    target = (depth[:, 0, ::2, ::2] > 2).long()  # near vs far: learnable from depth alone
+    opt = torch.optim.Adam(model.parameters(), 1e-2)
+    losses = []
+    for _ in range(30):
+        loss = torch.nn.functional.cross_entropy(model(rgb, depth), target)
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        losses.append(loss.item())
+    assert losses[-1] < 0.5 * losses[0]

@@ -1,0 +1,72 @@
+"""The pixels track's segmenter trains on a tiny render, writes its card and fp16 weights,
+resumes after a kill to the same result, and loads back as it was selected."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from maniskill_tidy.training.segmenter_data import SegDataConfig, build_segmenter_data
+
+
+@pytest.fixture(scope="module")
+def tiny_data(tmp_path_factory):
+    root = tmp_path_factory.mktemp("segtrain")
+    for split in ("train", "val", "test"):
+        cfg = SegDataConfig(None, split, "HeteroTidy-v1", every=3, max_steps=7, houses=1)
+        build_segmenter_data(cfg, root / split, progress=False)
+    return root
+
+
+def _cfg(data, out, **kw):
+    from maniskill_tidy.training.segmenter_trainer import SegTrainConfig
+
+    return SegTrainConfig(str(data), str(out), epochs=2, batch=4, crop=64,
+                          widths=(8, 8, 16, 16, 16), **kw)  # fmt: skip
+
+
+def test_a_tiny_segmenter_trains_resumes_and_loads(tiny_data, tmp_path, monkeypatch):
+    from maniskill_tidy.models.checkpoints import load_segmenter
+    from maniskill_tidy.models.segmenter import predict
+    from maniskill_tidy.training import segmenter_trainer as st
+
+    card = st.train_segmenter(_cfg(tiny_data, tmp_path / "a"), progress=False)
+    assert card["look"] == "HeteroTidy-v1" and len(card["curve"]) == 2
+    assert card["frames"] == {"train": 27, "val": 27, "test": 27}  # 3 teams x 3 steps x 3 agents
+    for key in ("AP", "AP50", "AP_small", "pixel_accuracy_pickupable", "truth", "predicted"):
+        assert key in card["test"], key
+    assert card["test"]["truth"] > 0 and card["train_seconds"] > 0
+    assert card["curve"][1]["train_loss"] < card["curve"][0]["train_loss"]
+    saved = json.loads((tmp_path / "a" / "card.json").read_text())
+    assert saved["weights_sha256"] == card["weights_sha256"]
+    assert (tmp_path / "a" / "curve.png").is_file()
+    assert not (tmp_path / "a" / "checkpoint.pt").exists()
+
+    # killed during the second epoch's validation, then run again: the same card
+    calls = {"n": 0}
+    real = st.evaluate
+
+    def dies_second(model, frames):
+        calls["n"] += 1
+        if calls["n"] == 2:
+            raise KeyboardInterrupt
+        return real(model, frames)
+
+    monkeypatch.setattr(st, "evaluate", dies_second)
+    with pytest.raises(KeyboardInterrupt):
+        st.train_segmenter(_cfg(tiny_data, tmp_path / "b"), progress=False)
+    assert (tmp_path / "b" / "checkpoint.pt").is_file()
+    monkeypatch.setattr(st, "evaluate", real)
+    with pytest.raises(ValueError, match="another configuration"):  # not resumed with other
+        st.train_segmenter(_cfg(tiny_data, tmp_path / "b", lr=1e-3), progress=False)
+    resumed = st.train_segmenter(_cfg(tiny_data, tmp_path / "b"), progress=False)
+    assert resumed["curve"] == card["curve"] and resumed["test"] == card["test"]
+    assert resumed["weights_sha256"] == card["weights_sha256"]
+
+    model = load_segmenter(tmp_path / "a")
+    with np.load(sorted((tiny_data / "test").glob("*.npz"))[0]) as z:
+        labels, probs = predict(model, z["rgb"][:2], z["depth_mm"][:2] / 1000.0)
+    assert labels.shape == (2, 224, 224) and labels.dtype == np.uint8
+    assert ((0 < probs) & (probs <= 1)).all()

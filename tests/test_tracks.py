@@ -1,0 +1,85 @@
+"""The pixels track's association: masks of one agent's frames joined into tracks by class and
+position, checked on synthetic frames and against the renderer's instances on a real render."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from maniskill_tidy.perception.instances import Mask2D
+from maniskill_tidy.perception.seg_classes import seg_classes
+from maniskill_tidy.perception.tracks import Tracker, mask_position
+
+K = np.array([[100.0, 0, 50], [0, 100.0, 50], [0, 0, 1]], dtype=np.float32)
+
+
+def camera_at(x: float) -> np.ndarray:
+    """World-to-camera extrinsics of a camera at (x, 0, 0) looking along world +z."""
+    ext = np.eye(4, dtype=np.float32)
+    ext[0, 3] = -x
+    return ext
+
+
+def box(r0, r1, c0, c1) -> np.ndarray:
+    m = np.zeros((100, 100), dtype=bool)
+    m[r0:r1, c0:c1] = True
+    return m
+
+
+def test_masks_become_tracks_by_class_and_position():
+    depth = np.full((100, 100), 2.0, dtype=np.float32)
+    # pixels are centred at +0.5: rows and columns 49 and 50 straddle the principal point
+    p = mask_position(box(49, 51, 49, 51), depth, K, camera_at(0.0))
+    assert np.allclose(p, [0.0, 0.0, 2.0], atol=1e-3)
+    tracker = Tracker()
+    left, right = Mask2D(7, box(40, 60, 10, 20), 1.0), Mask2D(7, box(40, 60, 80, 90), 1.0)
+    first = tracker.update([left, right], depth, K, camera_at(0.0), 0)
+    assert [t.id for _, t in first] == [1, 2]
+    # the camera moved 0.3 m to the right: the same two objects, further left in the frame
+    moved = [Mask2D(7, box(40, 60, 65, 75), 1.0), Mask2D(7, box(40, 60, 0, 10), 1.0),
+             Mask2D(9, box(40, 60, 65, 75), 1.0)]  # fmt: skip
+    again = tracker.update(moved, depth, K, camera_at(0.3), 1)
+    assert [t.id for _, t in again] == [2, 1, 3]  # another class at the same place: new track
+    assert tracker.tracks[2].sightings == 2 and tracker.tracks[3].cls == 9
+
+
+@pytest.fixture(scope="module")
+def render(tmp_path_factory):
+    from maniskill_tidy.training.segmenter_data import SegDataConfig, build_segmenter_data
+
+    out = tmp_path_factory.mktemp("tracks") / "test"
+    cfg = SegDataConfig(None, "test", "HeteroTidy-v1", every=3, max_steps=30, houses=1)
+    build_segmenter_data(cfg, out, progress=False)
+    with np.load(sorted(out.glob("house_*.npz"))[0]) as z:
+        return {k: z[k] for k in z.files}
+
+
+def test_tracks_of_true_masks_follow_the_renderers_instances(render):
+    """With perfect masks, association alone: a track holds one object, an object few tracks."""
+    c = seg_classes()
+    track_to_truth: dict[tuple, list[int]] = {}
+    truth_to_tracks: dict[int, set] = {}
+    for team in np.unique(render["team"]):
+        for agent in np.unique(render["agent"]):
+            tracker = Tracker()
+            for k in np.nonzero((render["team"] == team) & (render["agent"] == agent))[0]:
+                inst, cls = render["instance"][k], render["cls"][k]
+                masks, truths = [], []
+                for i in np.unique(inst[inst > 0]):
+                    m = inst == i
+                    if c.is_pickupable(int(cls[m][0])) and m.sum() >= 20:
+                        masks.append(Mask2D(int(cls[m][0]), m, 1.0))
+                        truths.append(int(i))
+                depth = render["depth_mm"][k].astype(np.float32) / 1000
+                pairs = tracker.update(masks, depth, render["intrinsics"][k],
+                                       render["extrinsics"][k], int(render["t"][k]))  # fmt: skip
+                for (_, track), truth in zip(pairs, truths, strict=True):
+                    track_to_truth.setdefault((team, agent, track.id), []).append(truth)
+                    truth_to_tracks.setdefault(truth, set()).add((team, agent, track.id))
+    sightings = sum(len(v) for v in track_to_truth.values())
+    pure = sum(max(v.count(t) for t in set(v)) for v in track_to_truth.values())
+    assert sightings >= 30  # objects were seen
+    assert pure / sightings >= 0.95
+    agents_per_truth = [len({(te, a) for te, a, _ in v}) for v in truth_to_tracks.values()]
+    tracks_per_truth = [len(v) for v in truth_to_tracks.values()]
+    assert sum(tracks_per_truth) <= 1.3 * sum(agents_per_truth)  # rarely split in two
