@@ -16,9 +16,23 @@ def _pixel_of(seg: np.ndarray, sid: int) -> tuple[int, int]:
     return int(cols[k]), int(rows[k])
 
 
+def _surface_pixel(env, name: str, seg: np.ndarray, sid: int, target: str) -> tuple[int, int]:
+    """The pixel of the piece's mask nearest where the named surface's centre projects."""
+    from maniskill_tidy.envs.manipulation import project
+
+    fid, _, sname = target.partition("/")
+    f = env.hs.furniture[fid]
+    centre = env.manipulation.surface_centre(f, f.surface(sname))
+    intrinsic, extrinsic, _, _ = env._camera_matrices(name)
+    uv = project(centre + [0, 0, 0.02], intrinsic, extrinsic)
+    rows, cols = np.nonzero(seg.reshape(seg.shape[:2]) == sid)
+    k = np.argmin((cols + 0.5 - uv[0]) ** 2 + (rows + 0.5 - uv[1]) ** 2)
+    return int(cols[k]), int(rows[k])
+
+
 def test_the_expert_tidies_with_pixel_targets_instead_of_ids():
-    """The expert's named PickUp and PutDown targets, replaced by a pixel of that object or
-    furniture in the acting agent's frame, pick and place the same things."""
+    """The expert's named PickUp and PutDown targets, replaced by a pixel of that object, or of
+    that furniture where its surface projects, pick and place the same things."""
     from maniskill_tidy.eval.episode import Execution
     from maniskill_tidy.policies import make_team
 
@@ -28,21 +42,34 @@ def test_the_expert_tidies_with_pixel_targets_instead_of_ids():
         execution = Execution(make_team("expert"), env, 0)
         ids = {inst.id: sid for sid, inst in env.instances.items()}
         aimed = {"PickUp": 0, "PutDown": 0}
+        placed = []  # (object, the surface the expert named, the one it landed on)
         done = False
         while not done:
             actions = execution.step(obs, info)
+            intended = {}
             for name, act in actions.items():
                 if isinstance(act, Targeted) and isinstance(act.target, str):
                     kind = Action(act.action).name
-                    fid = act.target.split("/")[0]  # a surface: aim at its piece of furniture
-                    sid = ids.get(act.target, ids.get(fid))
+                    sid = ids.get(act.target.split("/")[0])
                     seg = obs[name]["segmentation"]
-                    if sid is not None and (seg == sid).sum() > 0:
-                        actions[name] = Targeted(act.action, _pixel_of(seg, sid))
-                        aimed[kind] += 1
+                    if sid is None or not (seg == sid).any():
+                        continue
+                    if "/" in act.target:
+                        pixel = _surface_pixel(env, name, seg, sid, act.target)
+                        intended[name] = (env.agents[env.agent_names.index(name)].held,
+                                          act.target)  # fmt: skip
+                    else:
+                        pixel = _pixel_of(seg, sid)
+                    actions[name] = Targeted(act.action, pixel)
+                    aimed[kind] += 1
             obs, _, terminated, truncated, info = env.step(actions)
+            for name, (oid, target) in intended.items():
+                if not info["failed"][name]:
+                    st = env.hs.state[oid]
+                    placed.append((oid, target, f"{st.receptacle}/{st.surface}"))
             done = terminated or truncated
         assert aimed["PickUp"] >= 1 and aimed["PutDown"] >= 1, aimed
+        assert placed and all(want == got for _, want, got in placed), placed
         assert info["success"], "the episode the expert solves with ids, solved with pixels"
     finally:
         env.close()

@@ -32,9 +32,11 @@ Rules, applied to the agents one after the other in team order within a step:
   counts as lying wherever it came to rest (a surface, or the floor).
 
 - A target can also be a pixel of the agent's current frame, ``Targeted(Action.PickUp, (x, y))``
-  (column x, row y, as AI2-THOR's): the object, or for PutDown the furniture, drawn there is
-  the target, then the same tests apply. An env made with ``targets="pixels"`` (the pixels
-  track, where no agent knows an instance id) takes only pixel targets and refuses id targets.
+  (column x, row y, as AI2-THOR's): the object, or for PutDown the piece of furniture (or its
+  door or drawer), drawn there is the target, then the same tests apply; PutDown tries that
+  piece's surfaces whose centre projects nearest the pixel first. An env made with
+  ``targets="pixels"`` (the pixels track, where no agent knows an instance id) takes only pixel
+  targets and refuses id targets.
 
 Every failure is named in ``info["failed"][agent]``; a failed action still costs a step.
 """

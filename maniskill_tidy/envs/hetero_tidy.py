@@ -466,7 +466,9 @@ class HeteroTidyEnv(BaseEnv):
         xy = np.asarray(self.hs.house.navgrid.center(*a.cell))
         seg = self._last_seg.get(a.name)
         counts = Counter() if seg is None else pixel_counts(seg)
+        aim = None
         if isinstance(target, tuple):
+            aim = target
             target, reason = self._pixel_target(act, seg, target)
             if reason:
                 return reason
@@ -478,7 +480,8 @@ class HeteroTidyEnv(BaseEnv):
                 self._place_robot(i)
             return reason
         if act == Action.PutDown:
-            return self.manipulation.put_down(a, xy, counts, self._camera_matrices(a.name), target)
+            camera = self._camera_matrices(a.name)
+            return self.manipulation.put_down(a, xy, counts, camera, target, aim)
         return self.manipulation.drop(a)
 
     def _pixel_target(self, act: Action, seg, pixel: Pixel) -> tuple[str | None, str | None]:
@@ -493,7 +496,9 @@ class HeteroTidyEnv(BaseEnv):
         want = "object" if act == Action.PickUp else "furniture"
         if inst is None or inst.kind != want:
             return None, f"{act.name} at pixel {pixel}: no {want} drawn there"
-        return inst.id, None
+        # a door or drawer is part of its piece: PutDown tries the piece's surfaces nearest the
+        # pixel first (Manipulation.put_candidates)
+        return (inst.id if want == "object" else inst.id.split("/")[0]), None
 
     def preview(
         self, name: str, cell: tuple[int, int], rotation: int, horizon: int

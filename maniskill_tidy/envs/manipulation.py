@@ -93,7 +93,10 @@ class Manipulation:
         counts: Counter,
         camera: tuple[np.ndarray, np.ndarray, int, int],
         target: str | None,
+        aim: tuple[int, int] | None = None,
     ) -> str | None:
+        """``aim``: a pixel of the frame; the surfaces whose centre projects nearest it are
+        tried first (else those nearest the image centre)."""
         if agent.held is None:
             return "holding nothing"
         oid = agent.held
@@ -105,7 +108,7 @@ class Manipulation:
             f = self.hs.furniture[fid]
             if sname and sname not in [s.name for s in f.surfaces]:
                 return f"{fid} has no surface {sname!r}; it has {[s.name for s in f.surfaces]}"
-        ranked = self.put_candidates(xy, counts, camera, target)
+        ranked = self.put_candidates(xy, counts, camera, target, aim)
         if not ranked:
             what = target or "no receptacle surface"
             return (
@@ -136,6 +139,7 @@ class Manipulation:
         counts: Counter,
         camera: tuple[np.ndarray, np.ndarray, int, int],
         target: str | None = None,
+        aim: tuple[int, int] | None = None,
     ) -> list[tuple[float, Furniture, Surface]]:
         """Surfaces PutDown would try from here, best first (see the rules in actions.py)."""
         visible_links: dict[tuple[str, str], int] = {}
@@ -158,7 +162,8 @@ class Manipulation:
                 uv = project(centre + [0, 0, 0.02], intrinsic, extrinsic)
                 if uv is None or not (0 <= uv[0] < width and 0 <= uv[1] < height):
                     continue
-                ranked.append((math.hypot(uv[0] - width / 2, uv[1] - height / 2), f, s))
+                at = (width / 2, height / 2) if aim is None else (aim[0] + 0.5, aim[1] + 0.5)
+                ranked.append((math.hypot(uv[0] - at[0], uv[1] - at[1]), f, s))
         ranked.sort(key=lambda r: r[0])
         return ranked
 
