@@ -211,8 +211,11 @@ def write_gallery(out: Path) -> list[Path]:
     page.write_text(
         "# The v2 assets\n\n"
         "Written by `maniskill-tidy show-assets --out docs`. Sources, licences and authors come "
-        "from `maniskill_tidy/assets/data/manifest.json`; the credits in full are in "
-        "`maniskill_tidy/assets/data/ATTRIBUTION.md`. Shapes are built by "
+        "from `maniskill_tidy/assets/data/manifest.json`, which holds what `derive-assets` read "
+        "from each source's own licence files; the credits in full (title, author, origin, "
+        "licence URI, what was modified) are in `maniskill_tidy/assets/data/ATTRIBUTION.md`. "
+        "The robots are modelled by the project (`maniskill_tidy/assets/robots.py`), and so is "
+        "the environment map (`assets/lighting.py`); shapes are built by "
         "`maniskill_tidy/assets/shapes.py` around a robosuite (MIT) texture.\n\n"
         "![robots](assets-robots.png)\n\n"
         "![furniture](assets-furniture.png)\n\n![objects](assets-objects.png)\n\n" + table() + "\n"
