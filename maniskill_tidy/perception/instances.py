@@ -30,18 +30,13 @@ def depth_edges(depth: np.ndarray) -> np.ndarray:
     """Pixels whose depth differs from a 4-neighbour's by more than the jump allowed there."""
     d = depth.reshape(depth.shape[:2]).astype(np.float32)
     edge = np.zeros(d.shape, dtype=bool)
-    for axis in (0, 1):
-        diff = np.abs(np.diff(d, axis=axis))
-        limit = DEPTH_JUMP + 0.05 * np.minimum(
-            d.take(range(d.shape[axis] - 1), axis), d.take(range(1, d.shape[axis]), axis)
-        )
-        jump = diff > limit
-        if axis == 0:
-            edge[:-1] |= jump
-            edge[1:] |= jump
-        else:
-            edge[:, :-1] |= jump
-            edge[:, 1:] |= jump
+    for a, b, ea, eb in (
+        (d[:-1], d[1:], edge[:-1], edge[1:]),
+        (d[:, :-1], d[:, 1:], edge[:, :-1], edge[:, 1:]),
+    ):
+        jump = np.abs(a - b) > DEPTH_JUMP + 0.05 * np.minimum(a, b)
+        ea |= jump
+        eb |= jump
     return edge
 
 
@@ -53,21 +48,31 @@ def split_instances(
     min_pixels: int = MIN_PIXELS,
 ) -> list[Mask2D]:
     """The instances of ``classes`` in a label image (H, W). ``probabilities`` (H, W): the
-    segmenter's probability of the label it chose per pixel, for each instance's score."""
+    segmenter's probability of the label it chose per pixel, for each instance's score. Each
+    class is worked on inside its bounding box only."""
     edges = depth_edges(depth)
+    present = np.zeros(256, dtype=bool)
+    present[np.asarray(classes, dtype=np.int64)] = True
+    boxes = ndimage.find_objects(np.where(present[labels], labels, 0).astype(np.int32))
     out = []
-    for c in np.intersect1d(np.unique(labels), np.asarray(classes)):
-        mask = labels == c
-        parts, n = ndimage.label(mask & ~edges)
+    for index, box in enumerate(boxes):
+        if box is None:
+            continue
+        c = index + 1
+        mask = labels[box] == c
+        cut = mask & ~edges[box]
+        parts, n = ndimage.label(cut)
         if n == 0:
             parts, n = ndimage.label(mask)
-        elif (mask & edges).any():  # edge pixels join the part of their nearest pixel
+        elif (mask & ~cut).any():  # edge pixels join the part of their nearest pixel
             _, (iy, ix) = ndimage.distance_transform_edt(parts == 0, return_indices=True)
             parts = np.where(mask, parts[iy, ix], 0)
+        sizes = np.bincount(parts.ravel(), minlength=n + 1)
         for k in range(1, n + 1):
-            m = parts == k
-            if m.sum() < min_pixels:
+            if sizes[k] < min_pixels:
                 continue
+            m = np.zeros(labels.shape, dtype=bool)
+            m[box] = parts == k
             score = float(probabilities[m].mean()) if probabilities is not None else 1.0
             out.append(Mask2D(int(c), m, score))
     return out
