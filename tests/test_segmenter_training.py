@@ -1,5 +1,6 @@
 """The pixels track's segmenter trains on a tiny render, writes its card and fp16 weights,
-resumes after a kill to the same result, and loads back as it was selected."""
+resumes after a kill to the same result, loads back as it was selected, and runs the same
+through ONNX Runtime."""
 
 from __future__ import annotations
 
@@ -70,3 +71,11 @@ def test_a_tiny_segmenter_trains_resumes_and_loads(tiny_data, tmp_path, monkeypa
         labels, probs = predict(model, z["rgb"][:2], z["depth_mm"][:2] / 1000.0)
     assert labels.shape == (2, 224, 224) and labels.dtype == np.uint8
     assert ((0 < probs) & (probs <= 1)).all()
+    # agents run the same weights through ONNX Runtime: the same labels, up to float rounding
+    from maniskill_tidy.models.segmenter import Runtime
+
+    with np.load(sorted((tiny_data / "test").glob("*.npz"))[0]) as z:
+        ort_labels, ort_probs = Runtime(model)(z["rgb"][:2], z["depth_mm"][:2] / 1000.0)
+    assert ort_labels.shape == labels.shape and ort_labels.dtype == np.uint8
+    assert (ort_labels == labels).mean() > 0.995
+    assert np.abs(ort_probs - probs)[ort_labels == labels].max() < 1e-3

@@ -29,6 +29,12 @@ class Track:
     last_step: int
 
 
+def camera_position(extrinsics) -> np.ndarray:
+    """The camera's centre in the world, from its world-to-camera extrinsics (3 x 4 or 4 x 4)."""
+    E = np.asarray(extrinsics, dtype=np.float64)
+    return -E[:3, :3].T @ E[:3, 3]
+
+
 def mask_position(mask: np.ndarray, depth: np.ndarray, intrinsics, extrinsics) -> np.ndarray | None:
     """The median world point of a mask's pixels with a depth (None if none has one)."""
     d = depth.reshape(depth.shape[:2])

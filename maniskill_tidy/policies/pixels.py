@@ -30,7 +30,7 @@ import numpy as np
 from maniskill_tidy.envs.actions import Action, Targeted
 from maniskill_tidy.perception.instances import split_instances
 from maniskill_tidy.perception.seg_classes import STRUCTURE, seg_classes
-from maniskill_tidy.perception.tracks import Tracker, mask_position
+from maniskill_tidy.perception.tracks import Tracker, camera_position, mask_position
 from maniskill_tidy.policies.base import Agent, AgentView, PublicInfo, Team
 from maniskill_tidy.policies.channel import Outbox
 from maniskill_tidy.sim.house_scene import Instance
@@ -51,15 +51,14 @@ class Segmenter:
 
     def __init__(self, folder: str) -> None:
         from maniskill_tidy.models.checkpoints import load_segmenter, weights_sha256
+        from maniskill_tidy.models.segmenter import Runtime
 
-        if folder not in self._loaded:
-            self._loaded[folder] = (load_segmenter(folder), weights_sha256(folder))
-        self.model, self.sha256 = self._loaded[folder]
+        if folder not in self._loaded:  # one thread: beside the env and the teammates
+            self._loaded[folder] = (Runtime(load_segmenter(folder), 1), weights_sha256(folder))
+        self.runtime, self.sha256 = self._loaded[folder]
 
     def __call__(self, rgb: np.ndarray, depth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        from maniskill_tidy.models.segmenter import predict
-
-        labels, probs = predict(self.model, rgb[None], depth.reshape(1, *depth.shape[:2]))
+        labels, probs = self.runtime(rgb[None], depth.reshape(1, *depth.shape[:2]))
         return labels[0], probs[0]
 
 
@@ -112,6 +111,14 @@ class PixelsAgent(Agent):
         self.inner = inner_factory(name, own, outbox)
         self.decide_every = self.inner.decide_every
         self.house = public.house
+        c = self.table.classes
+        self.instance_classes = [i for i, n in enumerate(c.names)
+                                 if n == "robot" or n.startswith("furniture:")
+                                 or c.is_pickupable(i)]  # fmt: skip
+        self.furniture_by_id = public.house.furniture_by_id()
+        self.footprints: dict[str, list] = {}  # furniture type -> [(id, footprint)]
+        for f in public.house.furniture:
+            self.footprints.setdefault(f.type, []).append((f.id, f.footprint()))
         self.held = 0  # seg id of what this agent believes it holds
         self.seg = None  # this frame's predicted ids
         self.points = None  # this frame's back-projection inputs
@@ -119,54 +126,50 @@ class PixelsAgent(Agent):
 
     # ------------------------------------------------------------------ perception
     def _frame(self, obs: dict, step: int) -> np.ndarray:
-        c = self.table.classes
+        c, table = self.table.classes, self.table
         depth = np.asarray(obs["depth"], dtype=np.float32).reshape(obs["rgb"].shape[:2])
         labels, probs = self.segmenter(np.asarray(obs["rgb"]), depth)
         seg = np.zeros(labels.shape, dtype=np.int32)
         robot = c.index["robot"]
-        for cls, sid in self.table.structure.items():
+        for cls, sid in table.structure.items():
             if cls != robot:
                 seg[labels == cls] = sid
         K, E = obs["intrinsics"], obs["extrinsics"]
-        camera = -np.asarray(E)[:3, :3].T @ np.asarray(E)[:3, 3]
-        for m in split_instances(labels, depth, [robot], probs):
+        camera = camera_position(E)
+        objects = []
+        for m in split_instances(labels, depth, self.instance_classes, probs):
+            if c.is_pickupable(m.cls):
+                objects.append(m)
+                continue
             p = mask_position(m.mask, depth, K, E)
-            if p is not None and np.hypot(*(p - camera)[:2]) > OWN_BODY:  # not its own base
-                seg[m.mask] = self.table.structure[robot]
-        furniture = [i for i in range(len(c.names)) if c.names[i].startswith("furniture:")]
-        for m in split_instances(labels, depth, furniture, probs):
-            fid = self._furniture_at(c.names[m.cls].split(":", 1)[1], m.mask, depth, K, E)
-            if fid is not None:
-                seg[m.mask] = self.table.furniture[fid]
-        objects = [i for i in range(len(c.names)) if c.is_pickupable(i)]
-        masks = split_instances(labels, depth, objects, probs)
-        for m, track in self.tracker.update(masks, depth, K, E, step):
-            sid = self.table.object_id(track)
-            if self.held and self._is_held(m, track, depth, K, E):
+            if p is None:
+                continue
+            if m.cls == robot:
+                if np.hypot(*(p - camera)[:2]) > OWN_BODY:  # not its own base
+                    seg[m.mask] = table.structure[robot]
+            elif (fid := self._furniture_at(c.names[m.cls].split(":", 1)[1], p)) is not None:
+                seg[m.mask] = table.furniture[fid]
+        for m, track in self.tracker.update(objects, depth, K, E, step):
+            sid = table.object_id(track)
+            if self.held and self._is_held(m, depth, K, E, camera):
                 sid = self.held
             seg[m.mask] = sid
         self.points = (depth, K, E)
         return seg
 
-    def _furniture_at(self, type_name: str, mask, depth, K, E) -> str | None:
-        p = mask_position(mask, depth, K, E)
-        if p is None:
-            return None
+    def _furniture_at(self, type_name: str, p: np.ndarray) -> str | None:
+        """The piece of the floor plan of this type whose footprint lies nearest ``p``."""
         best, dist = None, FURNITURE_MATCH
-        for f in self.house.furniture:
-            if f.type != type_name:
-                continue
-            x0, y0, x1, y1 = f.footprint()
+        for fid, (x0, y0, x1, y1) in self.footprints.get(type_name, ()):
             d = float(np.hypot(max(x0 - p[0], 0, p[0] - x1), max(y0 - p[1], 0, p[1] - y1)))
             if d <= dist:
-                best, dist = f.id, d
+                best, dist = fid, d
         return best
 
-    def _is_held(self, m, track, depth, K, E) -> bool:
+    def _is_held(self, m, depth, K, E, camera) -> bool:
         held_type = self.table.instances[self.held].type
         if self.table.classes.names[m.cls] != held_type:
             return False
-        camera = -np.asarray(E)[:3, :3].T @ np.asarray(E)[:3, 3]
         p = mask_position(m.mask, depth, K, E)
         return p is not None and float(np.linalg.norm(p - camera)) <= HOLD_RANGE
 
@@ -212,7 +215,7 @@ class PixelsAgent(Agent):
         if not len(rows):
             return (-1, -1)
         if surface:
-            s = self.house.furniture_by_id()[fid].surface(surface)
+            s = self.furniture_by_id[fid].surface(surface)
             depth, K, E = self.points
             from maniskill_tidy.perception.semantic_map import open3d_intrinsics, open3d_pose
 
