@@ -56,7 +56,7 @@ def _generate_procthor(args: argparse.Namespace) -> int:
 
 
 def _generate(args: argparse.Namespace) -> int:
-    from maniskill_tidy.tasks.dataset import generate_dataset
+    from maniskill_tidy.tasks.dataset import generate_dataset, secret_seed
 
     if args.procthor:
         return _generate_procthor(args)
@@ -66,15 +66,18 @@ def _generate(args: argparse.Namespace) -> int:
     counts = tuple(int(v) for v in split) if split else None
     if split is not None and counts != split:
         raise ValueError(f"--split {args.split!r}: expected three house counts TRAIN,VAL,TEST")
+    secret = args.secret_seed_file is not None or args.secret_seed
+    seed = secret_seed(args.secret_seed_file) if secret else args.seed
     start = time.perf_counter()
     manifest = generate_dataset(
         Path(args.out),
         args.houses,
-        args.seed,
+        seed,
         counts,
         workers=args.workers,
         single_fraction=args.single_fraction,
         ray=args.ray,
+        secret=secret,
     )
     elapsed = time.perf_counter() - start
     print(
@@ -204,6 +207,15 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
         "--houses", type=int, help="how many houses (with --procthor: read at most the first N)"
     )
     g.add_argument("--seed", type=int, default=0)
+    g.add_argument(
+        "--secret-seed-file",
+        metavar="FILE",
+        help="a split whose seed no file records: read the seed from FILE (or, with "
+        "--secret-seed, from $MANISKILL_TIDY_SECRET_SEED); the dataset says 'secret'",
+    )
+    g.add_argument(
+        "--secret-seed", action="store_true", help="the seed of $MANISKILL_TIDY_SECRET_SEED"
+    )
     g.add_argument("--out", required=True)
     g.add_argument(
         "--procthor",

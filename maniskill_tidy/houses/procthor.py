@@ -245,9 +245,11 @@ def _import_object(house: House, o: dict, where: str, parent: Furniture | None) 
                 surface = min(
                     parent.surfaces, key=lambda s: abs(parent.position[2] + s.center[2] - z)
                 ).name
+        _need(o, "id", where)
+        same_type = sum(1 for q in house.objects if q.type == type_name)
         house.objects.append(
-            PlacedObject(
-                id=_sid(_need(o, "id", where)),
+            PlacedObject(  # named as the generator names them: ProcTHOR's ids name a room
+                id=f"{type_name}_{same_type}",
                 type=type_name,
                 room=room,
                 receptacle=receptacle,

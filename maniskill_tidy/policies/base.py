@@ -28,6 +28,7 @@ recordings show them for every team.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import Any, ClassVar
@@ -47,15 +48,23 @@ OBSERVATION_KEYS = frozenset(
 )
 
 
+def opaque(name: str) -> str:
+    """A stable name for a house or an episode that says nothing of where it comes from."""
+    return "x" + hashlib.sha256(f"maniskill-tidy:{name}".encode()).hexdigest()[:16]
+
+
 @dataclass(frozen=True)
 class PublicInfo:
     """What every agent knows at the start: the floor plan, not where any object lies."""
 
-    house: House  # rooms, walls, doors, furniture and navigation grid; ``objects`` is empty
+    # rooms, walls, doors, furniture and navigation grid; ``objects`` is empty, ``seed`` None
+    # and ``id`` opaque: the generator is public, and its seed or the house's index in the
+    # dataset would rebuild the mess (``generate_meta_task``)
+    house: House
     agents: list[str]
     capabilities: list[Capability]
-    episode_id: str
-    seed: int
+    episode_id: str  # opaque, for the same reason (not "house_00010/task_0/start_0")
+    seed: int  # the agents' own random seed
     # The segmentation's label table, id -> Instance(kind, type, id): with ground-truth
     # segmentation it stands in for a trained detector's class (and instance) output.
     instances: dict = dataclasses.field(default_factory=dict)
@@ -68,11 +77,12 @@ class PublicInfo:
             size = env.manipulation.sizes[oid]
             return tuple(float(v) for v in env.hs.object_bottom(oid) + [0.0, 0.0, size[2] / 2])
 
+        house = dataclasses.replace(env.house, objects=[], seed=None, id=opaque(env.house.id))
         return cls(
-            house=dataclasses.replace(env.house, objects=[]),
+            house=house,
             agents=list(env.agent_names),
             capabilities=list(env.team),
-            episode_id=env.episode.id,
+            episode_id=opaque(env.episode.id),
             seed=seed,
             instances=dict(env.instances),
             oracle_misplaced={oid: centre(oid) for oid in env.misplaced} if oracle else {},

@@ -62,18 +62,50 @@ def dumps_gz(payload: dict) -> bytes:
     return buf.getvalue()
 
 
-def _make_shard(args: tuple[int, str, int, int, float]) -> tuple[str, int, int, bytes]:
-    seed, split, start, stop, single_fraction = args
+def _make_shard(args: tuple[int, str, int, int, float, bool]) -> tuple[str, int, int, bytes]:
+    seed, split, start, stop, single_fraction, secret = args
     built = [generate_house(seed, i) for i in range(start, stop)]
     schedule = single_schedule(built, list(range(start, stop)), seed, single_fraction)
     houses, tasks = [], []
     for i, house in zip(range(start, stop), built, strict=True):
-        houses.append(house.to_dict())
+        houses.append(dict(house.to_dict(), seed=None) if secret else house.to_dict())
         tasks += [t.to_dict() for t in generate_meta_tasks(house, seed, i, schedule[i])]
-    return split, stop - start, len(tasks), shard_bytes(split, seed, houses, tasks)
+    recorded = SECRET if secret else seed
+    return split, stop - start, len(tasks), shard_bytes(split, recorded, houses, tasks)
 
 
-def shard_bytes(split: str, seed: int, houses: list[dict], tasks: list[dict]) -> bytes:
+SECRET = "secret"  # what a secret split's files say in place of its seed
+SECRET_SEED_BITS = 32  # a secret seed below 2**32 could be found by trying them all
+SECRET_SEED_VARIABLE = "MANISKILL_TIDY_SECRET_SEED"
+
+
+def secret_seed(path: str | None) -> int:
+    """The seed of a split kept out of every file: from ``path`` or the environment variable
+    :data:`SECRET_SEED_VARIABLE`, as a challenge server keeps its test split."""
+    import os
+
+    if path is not None:
+        try:
+            text, where = Path(path).read_text().strip(), path
+        except OSError as e:
+            raise ValueError(f"--secret-seed-file {path}: {e.strerror}") from None
+    else:
+        text, where = os.environ.get(SECRET_SEED_VARIABLE, ""), SECRET_SEED_VARIABLE
+        if not text:
+            raise ValueError(f"{SECRET_SEED_VARIABLE} is not set; expected a secret seed")
+    try:
+        seed = int(text)
+    except ValueError:
+        raise ValueError(f"{where}: expected an integer seed, got {text[:20]!r}") from None
+    if seed < 2**SECRET_SEED_BITS:
+        raise ValueError(
+            f"{where}: a secret seed below 2**{SECRET_SEED_BITS} can be found by trying them "
+            "all; make one with `python -c 'import secrets; print(secrets.randbits(64))'`"
+        )
+    return seed
+
+
+def shard_bytes(split: str, seed: int | str, houses: list[dict], tasks: list[dict]) -> bytes:
     return dumps_gz(
         {
             "schema_version": SCHEMA_VERSION,
@@ -94,11 +126,14 @@ def generate_dataset(
     progress: bool = True,
     single_fraction: float = SINGLE_FRACTION,
     ray: str | None = None,
+    secret: bool = False,
 ) -> dict:
     """Generate (or resume) a dataset in ``out``; returns the manifest.
 
     ``single_fraction``: the share of meta-tasks meant to be Single (default the paper's);
-    ``ray``: build the shards on Ray actors (see :mod:`maniskill_tidy.common.parallel`)."""
+    ``ray``: build the shards on Ray actors (see :mod:`maniskill_tidy.common.parallel`);
+    ``secret``: write no seed anywhere (the manifest and shards say "secret", houses have
+    none); only a digest of it in ``.generate.json``, so that a resume needs the same one."""
     out = Path(out)
     if n_houses < 1:
         raise ValueError(f"--houses must be at least 1, got {n_houses}")
@@ -107,14 +142,16 @@ def generate_dataset(
     splits = split_counts(n_houses, counts)
     params = {
         "houses": n_houses,
-        "seed": seed,
+        "seed": SECRET if secret else seed,
         "single_fraction": single_fraction,
         "splits": splits,
         "generator_version": GENERATOR_VERSION,
         "schema_version": SCHEMA_VERSION,
     }
-    params_file = refuse_other_arguments(out, params)
-    write_atomic(params_file, json.dumps(params, sort_keys=True).encode())
+    # a resume needs the same secret: only its digest is kept, beside the shards
+    arguments = dict(params, secret_sha256=sha256(str(seed).encode())) if secret else params
+    params_file = refuse_other_arguments(out, arguments)
+    write_atomic(params_file, json.dumps(arguments, sort_keys=True).encode())
 
     jobs, start = [], 0
     for split in SPLITS:
@@ -123,7 +160,7 @@ def generate_dataset(
             jobs.append(
                 (
                     f"{split}/shard-{k:04d}.json.gz",
-                    (seed, split, s, min(s + SHARD_SIZE, start + n), single_fraction),
+                    (seed, split, s, min(s + SHARD_SIZE, start + n), single_fraction, secret),
                 )
             )
         start += n

@@ -35,8 +35,9 @@ from maniskill_tidy.tasks.metatask import SINGLE_FRACTION, generate_meta_tasks, 
 from maniskill_tidy.tasks.validate import check_task
 
 # 2: heights from the floor; 3: L and C counters split; 4: blind corners; 5: a piece that
-# overhangs a neighbouring top takes room there
-IMPORTER_VERSION = "5"
+# overhangs a neighbouring top takes room there; 6: objects named TYPE_N (ProcTHOR's ids, such
+# as small|2|1, name the room an object came from, which is where a misplaced one belongs)
+IMPORTER_VERSION = "6"
 REPAIR_STREAM = 200  # house_rng stream of the repairs' relocations
 DEFAULT_WEIGHTS = (4, 1, 1)  # the procedural generator's 80/20/20 proportions
 
