@@ -50,7 +50,8 @@ def test_agents_receive_no_seed_and_opaque_ids():
             assert public.house.seed is None and house.seed is not None
             assert public.house.objects == [] and house.objects
             for text in (public.house.id, public.episode_id):
-                assert house.id not in text and "task" not in text and "start" not in text
+                assert house.id not in text and ep.id not in text
+                assert "task" not in text and "start" not in text
                 assert not any(part in text for part in house.id.split("_") if part.isdigit())
             # the same house and episode keep their names, as records need
             publics.append((public.house.id, public.episode_id))
@@ -97,7 +98,8 @@ def test_a_secret_split_records_no_seed(tmp_path, monkeypatch):
     assert str(seed).encode() in (tmp_path / "open" / "manifest.json").read_bytes()
     manifest = json.loads((tmp_path / "secret" / "manifest.json").read_text())
     assert manifest["seed"] == "secret"
-    secret, open_ = load_dataset(tmp_path / "secret", "test"), load_dataset(tmp_path / "open", "test")
+    secret = load_dataset(tmp_path / "secret", "test")
+    open_ = load_dataset(tmp_path / "open", "test")
     for hid, house in secret.houses.items():  # the same houses and tasks, without the seed
         assert house.seed is None and open_.houses[hid].seed == seed
         assert house.rooms == open_.houses[hid].rooms

@@ -225,10 +225,10 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     )
     ts.add_argument("--data", required=True, help="segmenter-data's folder (train/, val/, test/)")
     ts.add_argument("--out", required=True, help="e.g. agents/segmenter-v2")
-    ts.add_argument("--epochs", type=int, default=10)
+    ts.add_argument("--epochs", type=int, default=16)
     ts.add_argument("--batch", type=int, default=16)
     ts.add_argument("--crop", type=int, default=128, help="training crops, px (frames are 224)")
-    ts.add_argument("--widths", help="channels of the five levels (16,24,48,64,96)")
+    ts.add_argument("--widths", help="channels of the five levels (12,16,32,48,64)")
     ts.add_argument("--seed", type=int, default=0)
     ts.set_defaults(func=_train_segmenter)
 

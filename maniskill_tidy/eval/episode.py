@@ -9,10 +9,11 @@ the env instead.
 
 Observers watch the episode with full access (they are the benchmark's instruments, not part
 of the team): a recorder, the demonstration writer. Each may define ``start(env, team,
-channel)``, ``observed(t, obs, info)`` (the observation the team decides on at step ``t``),
-``decided(t, actions, labels)`` (before the env steps), ``traced(t, traces)`` (what the agents
-report beyond their labels, e.g. HanGrCom's T and groups), ``log_step(t, obs, actions, info,
-channel, labels)`` (after) and ``finish(record)``.
+channel)``, ``executing(agents)`` (the team's agents, for instruments that compare what they
+made of their frames with the truth), ``observed(t, obs, info)`` (the observation the team
+decides on at step ``t``), ``decided(t, actions, labels)`` (before the env steps),
+``traced(t, traces)`` (what the agents report beyond their labels, e.g. HanGrCom's T and
+groups), ``log_step(t, obs, actions, info, channel, labels)`` (after) and ``finish(record)``.
 """
 
 from __future__ import annotations
@@ -187,6 +188,7 @@ def play_episode(env, team: AnyTeam, index: int, seed: int, observers=()) -> Epi
     obs, info = env.reset(seed=seed, options={"episode": index})
     execution = Execution(team, u, seed)
     _call(observers, "start", u, team, execution.channel)
+    _call(observers, "executing", execution.agents)
     done, t, failed = False, 0, 0
     while not done:
         _call(observers, "observed", t, obs, info)

@@ -42,9 +42,15 @@ class EpisodeRecord:
     seed: int
     seconds: float = 0.0
     failed_actions: int = 0
+    # pixels runs only: each misplaced object's fate and the false pickups
+    # (``eval/pixels_losses.py``); absent from the records of the ground-truth track
+    pixels: dict | None = None
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        d = asdict(self)
+        if d["pixels"] is None:
+            del d["pixels"]
+        return d
 
     @classmethod
     def from_dict(cls, d: dict) -> EpisodeRecord:

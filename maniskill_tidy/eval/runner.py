@@ -15,6 +15,7 @@ first start of every meta-task of the split (200 episodes on the 120-house test 
 
 from __future__ import annotations
 
+import dataclasses
 import fcntl
 import json
 import os
@@ -31,6 +32,7 @@ from maniskill_tidy.common.parallel import auto_workers, run_jobs
 from maniskill_tidy.common.provenance import code_version
 from maniskill_tidy.eval.episode import play_episode
 from maniskill_tidy.eval.metrics import EpisodeRecord, summarize
+from maniskill_tidy.eval.pixels_losses import PixelsLosses
 from maniskill_tidy.policies import make_team, team_class
 from maniskill_tidy.policies.channel import CENTRAL
 from maniskill_tidy.policies.pixels import PIXELS_OBSERVATION
@@ -73,8 +75,8 @@ class RunConfig:
             mode = images
         elif images:
             mode = ALL_IMAGES  # the runner strips what a pixels team may not see
-        elif self.pixels:
-            mode = PIXELS_OBSERVATION
+        elif self.pixels:  # the runner strips the segmentation; the losses observer reads it
+            mode = ALL_IMAGES
         else:
             mode = team_cls.observations if team_cls.needs_images else "none"
         pixels = {"targets": "pixels"} if self.pixels else {}
@@ -122,8 +124,14 @@ def make_env(cfg: RunConfig, images: bool | str = False):
 
 
 def run_episode(env, team, index: int, seed: int, recorder=None) -> EpisodeRecord:
-    """Play episode ``index`` of the env's split with ``team``; log it if ``recorder`` is given."""
-    return play_episode(env, team, index, seed, [recorder] if recorder is not None else [])
+    """Play episode ``index`` of the env's split with ``team``; log it if ``recorder`` is given.
+    A pixels team's record keeps what became of each misplaced object (``pixels_losses``)."""
+    observers = [recorder] if recorder is not None else []
+    if not getattr(team, "pixels", False):
+        return play_episode(env, team, index, seed, observers)
+    losses = PixelsLosses()
+    record = play_episode(env, team, index, seed, [*observers, losses])
+    return dataclasses.replace(record, pixels=losses.result())
 
 
 # ---------------------------------------------------------------------- workers
@@ -358,7 +366,7 @@ def _summary(
         "wall_seconds": run.info["wall_seconds"],  # summed over sessions that ran episodes
         "workers": workers,
         "ray": ray,  # None: local processes; "local" or the cluster's address
-        "obs_mode": cfg.env_kwargs(images)["obs_mode"],
+        "obs_mode": PIXELS_OBSERVATION if cfg.pixels else cfg.env_kwargs(images)["obs_mode"],
         "episode_seconds_mean": round(float(np.mean([r.seconds for r in records])), 3),
         "central_endpoint": CENTRAL if getattr(team_cls, "central", False) else None,
     }

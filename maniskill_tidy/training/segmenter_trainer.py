@@ -36,11 +36,11 @@ SPLITS = ("train", "val", "test")
 class SegTrainConfig:
     data: str  # segmenter-data's folder: train/, val/, test/
     out: str  # where model.pt and card.json go
-    epochs: int = 10
+    epochs: int = 16  # about 95 s each on 2 cores for 13k frames
     batch: int = 16
     crop: int = 128  # px: training crops at full resolution (frames are 224)
     lr: float = 2e-3
-    widths: tuple[int, ...] = (16, 24, 48, 64, 96)
+    widths: tuple[int, ...] = (12, 16, 32, 48, 64)  # models/segmenter.py: ~5 ms per frame
     seed: int = 0
     eval_frames: int = 400  # val frames scored per epoch (evenly spaced); test: all
     weight_power: float = 0.5  # class weights: 1 / frequency ** this

@@ -1,0 +1,142 @@
+"""Why a pixels team loses objects: each misplaced object's fate, written into its run's records.
+
+An observer (``eval/episode.py``) with the benchmark's full access, attached to every pixels run
+(``eval --segmentation``): the env renders its segmentation for it, which the runner strips
+before any agent sees it. Each step it compares, in every agent's frame, the renderer's mask of
+each misplaced object with the masks the agent itself made of that frame (its own label table's
+object slots, ``policies/pixels.py``), and each action's outcome with the simulator.
+
+A misplaced object ends in the first of these that holds:
+
+- ``never in view``: no agent frame showed it with ``MIN_PIXELS`` pixels;
+- ``never detected``: in view, but no object mask of the agent's covered it (IoU >= 0.5);
+- ``wrong type``: only masks of another type covered it;
+- ``detected, not picked``: a mask of its type covered it, and no agent picked it up;
+- ``picked, not placed`` and ``placed``.
+
+Per object also: how many of an agent's tracks (slots) it was seen as (``tracks`` > 1: one
+object split into several), and whether a slot that covered it also covered another object,
+misplaced or not, with a quarter of its pixels (``merged``). Per episode: ``false_pickups``,
+objects already in place that an agent picked up.
+"""
+
+from __future__ import annotations
+
+from collections import Counter, defaultdict
+
+import numpy as np
+
+from maniskill_tidy.envs.actions import MIN_PIXELS
+
+FATES = (
+    "never in view",
+    "never detected",
+    "wrong type",
+    "detected, not picked",
+    "picked, not placed",
+    "placed",
+)
+IOU = 0.5  # a mask detects an object it overlaps this much (COCO's AP50 threshold)
+MERGED = 0.25  # a mask of which another object covers this share holds two objects
+
+
+class PixelsLosses:
+    """The observer; :meth:`result` is what the episode's record keeps."""
+
+    def start(self, env, team, channel) -> None:
+        self.env = env
+        self.misplaced = list(env.misplaced)
+        self.type_of = {o: env.manipulation.types[o] for o in self.misplaced}
+        self.objects = {seg: i.id for seg, i in env.instances.items() if i.kind == "object"}
+        self.seg_of = {oid: seg for seg, oid in self.objects.items()}
+        self.in_view: set[str] = set()
+        self.matched: dict[str, set[bool]] = defaultdict(set)  # object -> {type right?}
+        self.slots: dict[str, set] = defaultdict(set)  # object -> {(agent, slot)}
+        self.covers: dict[tuple, set[str]] = defaultdict(set)  # (agent, slot) -> objects
+        self.held = {a.name: a.held for a in env.agents}
+        self.false_pickups = 0
+        self.agents: dict = {}
+        self.truth: dict[str, np.ndarray] = {}
+
+    def executing(self, agents: dict) -> None:
+        self.agents = agents
+
+    def observed(self, t: int, obs: dict, info: dict) -> None:
+        self.truth = {n: np.asarray(o["segmentation"]) for n, o in obs.items()}
+
+    def decided(self, t: int, actions: dict, labels: dict) -> None:
+        """The agents have just made their masks of this step's frames: compare them."""
+        for name, agent in self.agents.items():
+            seg = getattr(agent, "seg", None)
+            if seg is None or name not in actions or name not in self.truth:
+                continue
+            truth = self.truth[name].reshape(seg.shape)
+            for oid in self.misplaced:
+                mask = truth == self.seg_of[oid]
+                area = int(mask.sum())
+                if area < MIN_PIXELS:
+                    continue
+                self.in_view.add(oid)
+                ids, counts = np.unique(seg[mask], return_counts=True)
+                for sid, inter in zip(ids.tolist(), counts.tolist(), strict=True):
+                    inst = agent.table.instances.get(sid)
+                    if inst is None or inst.kind != "object":
+                        continue
+                    slot = seg == sid
+                    union = area + int(slot.sum()) - inter
+                    if inter / union >= IOU:
+                        self.matched[oid].add(inst.type == self.type_of[oid])
+                        self.slots[oid].add((name, sid))
+                        self.covers[(name, sid)].add(oid)
+                        ids_under, n_under = np.unique(truth[slot], return_counts=True)
+                        for other, n in zip(ids_under.tolist(), n_under.tolist(), strict=True):
+                            if other in self.objects and other != self.seg_of[oid]:
+                                if n >= MERGED * slot.sum():  # the mask holds another object
+                                    self.covers[(name, sid)].add(self.objects[other])
+
+    def log_step(self, t: int, obs, actions, info, channel, labels) -> None:
+        for a in self.env.agents:
+            if a.held and a.held != self.held[a.name] and a.held not in self.misplaced:
+                self.false_pickups += 1
+            self.held[a.name] = a.held
+
+    def result(self) -> dict:
+        picked = set(self.env.picked)
+        placed = {o for o in self.misplaced if self.env.is_reasonable(o)}
+        objects = []
+        for oid in self.misplaced:
+            if oid in placed:
+                fate = "placed"
+            elif oid in picked:
+                fate = "picked, not placed"
+            elif True in self.matched[oid]:
+                fate = "detected, not picked"
+            elif self.matched[oid]:
+                fate = "wrong type"
+            elif oid in self.in_view:
+                fate = "never detected"
+            else:
+                fate = "never in view"
+            merged = any(len(self.covers[s]) > 1 for s in self.slots[oid])
+            objects.append({"type": self.type_of[oid], "fate": fate,
+                            "tracks": len(self.slots[oid]), "merged": merged})  # fmt: skip
+        return {"objects": objects, "false_pickups": self.false_pickups}
+
+
+def summarise(records: list[dict]) -> dict:
+    """Fates over a run's records: counts per fate, per type and fate, association errors."""
+    fates: Counter = Counter()
+    by_type: dict[str, Counter] = defaultdict(Counter)
+    split = merged = false_pickups = 0
+    for r in records:
+        losses = r.get("pixels") or {}
+        false_pickups += losses.get("false_pickups", 0)
+        for o in losses.get("objects", []):
+            fates[o["fate"]] += 1
+            by_type[o["type"]][o["fate"]] += 1
+            split += o["tracks"] > 1
+            merged += bool(o["merged"])
+    return {"objects": sum(fates.values()), "fates": {f: fates[f] for f in FATES},
+            "by_type": {t: dict(c) for t, c in sorted(by_type.items())},
+            "split_into_tracks": split, "merged_with_another": merged,
+            "false_pickups": false_pickups, "episodes": len(records)}  # fmt: skip
