@@ -3,6 +3,7 @@ the fates are told apart, and association errors and false pickups are counted."
 
 from __future__ import annotations
 
+import json
 from types import SimpleNamespace as NS
 
 import numpy as np
@@ -83,3 +84,22 @@ def test_an_object_in_view_without_a_mask_is_never_detected():
     losses.decided(0, {"agent_0": 0}, {})
     fates = {o["type"]: o["fate"] for o in losses.result()["objects"]}
     assert fates["Apple"] == "never detected" and fates["Mug"] == "never in view"
+
+
+def test_the_command_reads_a_pixels_run_and_refuses_another(tmp_path):
+    from tests.test_cli_errors import cli, one_line_error
+
+    env, agent = _world()
+    losses = PixelsLosses()
+    losses.start(env, None, None)
+    out = losses.result()  # nothing seen: the book placed, the rest never in view
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "episodes.jsonl").write_text(json.dumps({"episode": "e", "pixels": out}) + "\n")
+    p = cli("pixels-losses", str(run), "--json", str(tmp_path / "l.json"))
+    assert p.returncode == 0, p.stderr
+    assert "| never in view | 3 | 0.75 |" in p.stdout and "| placed | 1 | 0.25 |" in p.stdout
+    assert json.loads((tmp_path / "l.json").read_text())["objects"] == 4
+    (run / "episodes.jsonl").write_text(json.dumps({"episode": "e", "success": True}) + "\n")
+    one_line_error(cli("pixels-losses", str(run)), "no record holds object fates")
+    one_line_error(cli("pixels-losses", str(tmp_path / "none")), "no episodes.jsonl")

@@ -98,6 +98,27 @@ def _compare(args: argparse.Namespace) -> int:
     return 0
 
 
+def _pixels_losses(args: argparse.Namespace) -> int:
+    import json
+
+    from maniskill_tidy.common.files import write_atomic
+    from maniskill_tidy.eval.pixels_losses import losses_table, summarise
+
+    path = Path(args.run)
+    path = path if path.suffix == ".jsonl" else path / "episodes.jsonl"
+    if not path.is_file():
+        raise ValueError(f"{args.run}: no episodes.jsonl; expected a pixels run's folder")
+    records = [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+    if not any("pixels" in r for r in records):
+        raise ValueError(f"{args.run}: no record holds object fates; expected a pixels run "
+                         "(eval --segmentation learned)")  # fmt: skip
+    summary = summarise(records)
+    print(losses_table(summary, args.top), end="")
+    if args.json:
+        write_atomic(Path(args.json), json.dumps(summary, indent=1).encode())
+    return 0
+
+
 def _replay(args: argparse.Namespace) -> int:
     import shutil
     import subprocess
@@ -180,6 +201,14 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     cp.add_argument("a", help="run folder (eval/results/setting_I/NAME) or its episodes.jsonl")
     cp.add_argument("b", help="the run to compare with, on the same split")
     cp.set_defaults(func=_compare)
+
+    pl = sub.add_parser(
+        "pixels-losses", help="why a pixels run lost objects: each misplaced object's fate, by type"
+    )
+    pl.add_argument("run", help="a pixels run's folder (eval/results/setting_I/NAME-pixels)")
+    pl.add_argument("--top", type=int, default=12, help="types listed (most objects lost first)")
+    pl.add_argument("--json", help="also write the counts here")
+    pl.set_defaults(func=_pixels_losses)
 
     rp = sub.add_parser("replay", help="open an episode recording (.rrd) in the rerun viewer")
     rp.add_argument("file")

@@ -140,3 +140,23 @@ def summarise(records: list[dict]) -> dict:
             "by_type": {t: dict(c) for t, c in sorted(by_type.items())},
             "split_into_tracks": split, "merged_with_another": merged,
             "false_pickups": false_pickups, "episodes": len(records)}  # fmt: skip
+
+
+def losses_table(summary: dict, top: int = 12) -> str:
+    """Markdown: the fates, then the types that lost the most objects, by why."""
+    n = max(summary["objects"], 1)
+    lines = [f"{summary['objects']} misplaced objects in {summary['episodes']} episodes; "
+             f"{summary['split_into_tracks']} seen as several tracks by one agent, "
+             f"{summary['merged_with_another']} in a mask with another object; "
+             f"{summary['false_pickups']} objects in place picked up", "",
+             "| fate | objects | share |", "|---|---:|---:|"]  # fmt: skip
+    lines += [f"| {f} | {c} | {c / n:.2f} |" for f, c in summary["fates"].items()]
+    lost = FATES[1:4]  # what the pixels track adds: seen, yet not detected or not picked
+    ranked = sorted(summary["by_type"].items(),
+                    key=lambda kv: (-sum(kv[1].get(f, 0) for f in lost), kv[0]))  # fmt: skip
+    lines += ["", "| type | objects | " + " | ".join(lost) + " | placed |",
+              "|---|---:|" + "---:|" * (len(lost) + 1)]  # fmt: skip
+    for t, c in ranked[:top]:
+        cells = " | ".join(str(c.get(f, 0)) for f in lost)
+        lines.append(f"| {t} | {sum(c.values())} | {cells} | {c.get('placed', 0)} |")
+    return "\n".join(lines) + "\n"
