@@ -547,3 +547,34 @@ def test_orderings_judge_the_noise_by_the_paired_interval_when_the_episodes_are_
     assert "| holds (paired interval includes 0) |" in row and "over 40 episodes" in row
     jsonl = tmp_path / "results" / "setting_I" / "wo_know" / "episodes.jsonl"
     assert jsonl.read_text().endswith('{"torn": ')  # a reader leaves the writer's line alone
+
+
+def test_pixels_rows_get_their_own_table_paired_with_their_team_on_ground_truth(tmp_path):
+    """A pixels run is never a row of the ground-truth tables; it sits beside the same team in
+    the same look, the difference paired over their episodes."""
+    import dataclasses
+
+    from maniskill_tidy.eval.leaderboard import ground_truth_partner
+
+    assert ground_truth_partner("memory-v2-pixels-segmenter-v1") == "memory-v2"
+    outcomes = {"memory-v2": [True] * 16 + [False] * 4,
+                "memory-v2-pixels": [True] * 8 + [False] * 12}  # fmt: skip
+    for policy, success in outcomes.items():
+        s = {**_summary(policy, success, 0), "env": "HeteroTidy-v2",
+             "segmentation": "learned:" + "ab" * 32 if "pixels" in policy else "ground-truth"}
+        folder = tmp_path / "results" / "setting_I" / policy
+        folder.mkdir(parents=True)
+        (folder / "summary.json").write_text(json.dumps(s))
+        records = [dataclasses.replace(rec("Single", 2, 2 if ok else 0, 2, 100, 0), episode=f"e{i}")
+                   for i, ok in enumerate(success)]  # fmt: skip
+        (folder / "episodes.jsonl").write_text(
+            "".join(json.dumps(r.to_dict()) + "\n" for r in records)
+        )
+    md = write_leaderboard(tmp_path).read_text()
+    main, pixels = md.split("From pixels")
+    assert "| **memory-v2**" in main and "memory-v2-pixels" not in main
+    row = next(line for line in pixels.splitlines() if line.startswith("| **memory-v2-pixels**"))
+    cells = [c.strip() for c in row.split("|")[1:-1]]
+    assert cells[1] == "HeteroTidy-v2" and cells[2] == "its own look's (abababababab)"
+    assert cells[3].startswith("0.400 [") and cells[4] == "0.800"
+    assert cells[5].startswith("-0.400 [") and cells[6] == "0.50"

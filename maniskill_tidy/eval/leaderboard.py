@@ -226,6 +226,50 @@ def table(setting: str, runs: dict[str, dict], reference: dict, kind: str = "row
     return "\n".join(lines)
 
 
+def from_pixels(summary: dict) -> bool:
+    """A pixels-track run (``eval --segmentation``): its own table, never among the rows that
+    read the renderer's segmentation."""
+    return summary.get("segmentation", "ground-truth") != "ground-truth"
+
+
+def ground_truth_partner(policy: str) -> str:
+    """The same team in the same look on the renderer's segmentation: ``memory-v2-pixels`` and
+    ``memory-v2-pixels-segmenter-v1`` pair with ``memory-v2``."""
+    return policy.split("-pixels", 1)[0]
+
+
+def pixels_table(runs: dict[str, dict], played: dict[str, list[EpisodeRecord]]) -> str:
+    """Each pixels run beside its team on ground truth in the same look: Success, and the
+    paired difference over the episodes both played."""
+    from maniskill_tidy.eval.metrics import paired_difference
+
+    lines = ["| Team | look | segmenter | Success (pixels) | Success (ground truth) | "
+             "pixels - ground truth (paired) | kept | %FM (pixels / ground truth) |",
+             "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    for policy in sorted((p for p, s in runs.items() if from_pixels(s)), key=row_order):
+        s = runs[policy]
+        partner = ground_truth_partner(policy)
+        look = s.get("env", "HeteroTidy-v1")
+        weights = s["segmentation"].split(":", 1)[-1][:12]
+        trained = policy.split("-pixels-", 1)[1] if "-pixels-" in policy else "its own look's"
+        m = s["metrics"]["All"]
+        cells = [f"**{policy}**", look, f"{trained} ({weights})",
+                 f"{m['Success']:.3f}{_interval(m, 'Success')}"]  # fmt: skip
+        g = runs.get(partner)
+        if g is None or policy not in played or partner not in played:
+            cells += [f"- (no {partner} run)", "-", "-", "-"]
+        else:
+            gm = g["metrics"]["All"]
+            d = paired_difference(played[policy], played[partner])["Success"]
+            lo, hi = d["ci95"]
+            kept = m["Success"] / gm["Success"] if gm["Success"] else None
+            cells += [f"{gm['Success']:.3f}", f"{d['difference']:+.3f} [{lo:+.3f}, {hi:+.3f}]",
+                      "-" if kept is None else f"{kept:.2f}",
+                      f"{m['%FM']:.3f} / {gm['%FM']:.3f}"]  # fmt: skip
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def misprints(values: list[float | None]) -> list[str]:
     """The columns of a paper row whose All lies outside its Single and Cross: All averages
     over the Single and Cross episodes, so one of the three printed figures is wrong."""
@@ -471,7 +515,8 @@ def write_leaderboard(root: Path = Path("eval")) -> Path:
     numbers = {"I": ("3", "5"), "II": ("4", "6")}
     for setting in sorted(set(runs) | set(reference["rows"])):
         methods, ablations = numbers.get(setting, ("-", "-"))
-        ours = runs.get(setting, {})
+        everything = runs.get(setting, {})
+        ours = {p: s for p, s in everything.items() if not from_pixels(s)}
         parts += [f"## Setting {setting}", "",
                   f"Methods (the paper's Table {methods}):", "",
                   table(setting, ours, reference, "rows"), ""]  # fmt: skip
@@ -483,12 +528,21 @@ def write_leaderboard(root: Path = Path("eval")) -> Path:
         if any(p in ABLATIONS for p in ours) or reference.get("ablations", {}).get(setting):
             parts += [f"Ablations (the paper's Table {ablations}):", "",
                       table(setting, ours, reference, "ablations"), ""]  # fmt: skip
-        if runs.get(setting):
+        if ours:
+            played = episodes(root, setting, everything)
             parts += ["The paper's orderings on our learned rows:", "",
-                      orderings_table(runs[setting], episodes(root, setting, runs[setting])),
-                      "",
-                      "Runs:", "", details(runs[setting]), ""]  # fmt: skip
+                      orderings_table(ours, played), ""]  # fmt: skip
+            if len(ours) < len(everything):
+                parts += ["From pixels (the pixels track, `eval --segmentation learned`): agents "
+                          "see RGB-D only and find objects with the look's learned segmenter "
+                          "(docs/pixels.md); each row beside the same team reading the "
+                          "renderer's segmentation in the same look, the difference paired "
+                          "over the episodes both played (95 % interval). *kept*: the share "
+                          "of its ground-truth Success the team keeps.", "",
+                          pixels_table(everything, played), ""]  # fmt: skip
+            parts += ["Runs:", "", details(everything), ""]
     out = root / "LEADERBOARD.md"
     write_atomic(out, "\n".join(parts).encode())
-    plot(runs, reference, root / "leaderboard.png")
+    ground_truth = {k: {p: s for p, s in v.items() if not from_pixels(s)} for k, v in runs.items()}
+    plot(ground_truth, reference, root / "leaderboard.png")
     return out
