@@ -111,6 +111,14 @@ def test_instances_split_at_depth_jumps_and_score_a_perfect_prediction_at_ap_one
     # half of the instances missed: recall, and so AP, falls
     half = [(t, t[::2]) for t in truth]
     assert 0.0 < mask_ap(half, pickupable, (224, 224))["AP50"] < 1.0
+    # objects under 20 pixels missed: ignored when asked (an agent could not act on them)
+    big = [(t, [m for m in t if m.area >= 20]) for t in truth]
+    missed = mask_ap(big, pickupable, (224, 224))
+    tiny_ones = sum(m.area < 20 for t in truth for m in t if m.cls in pickupable)
+    assert tiny_ones > 0 and missed["AP50"] < 1.0
+    ignored = mask_ap(big, pickupable, (224, 224), ignore_below=20)
+    assert ignored["AP50"] == 1.0 and ignored["ignored"] == tiny_ones
+    assert ignored["truth"] == missed["truth"] - tiny_ones
 
 
 def test_the_segmenter_gives_class_logits_at_half_resolution_and_learns():

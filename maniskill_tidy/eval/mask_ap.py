@@ -4,7 +4,8 @@ The pixels track's segmenter is scored as a detector is: per frame, its instance
 mask, score) against the ground-truth instances of the same frame, matched at IoU thresholds
 0.5:0.95; AP, AP50, AP75 and AP by object size (COCO's area ranges, in pixels of our 224 px
 frames: small under 32^2, medium under 96^2). Only the classes asked for count (the pickupable
-types: what a team must find).
+types: what a team must find), and the segmenter's card counts objects an agent could act on:
+ground truth under the env's visibility threshold (``MIN_PIXELS``) is ignored.
 """
 
 from __future__ import annotations
@@ -30,10 +31,15 @@ def _rle(mask: np.ndarray) -> dict:
 
 
 def mask_ap(
-    frames: Iterable[tuple[list[Mask2D], list[Mask2D]]], classes: Iterable[int], shape
+    frames: Iterable[tuple[list[Mask2D], list[Mask2D]]],
+    classes: Iterable[int],
+    shape,
+    ignore_below: int = 0,
 ) -> dict[str, float]:
     """``frames``: per frame (ground truth, predictions). Returns :data:`KEYS` (-1 where no
-    ground truth of that size exists, as COCOeval reports it) and the instance counts."""
+    ground truth of that size exists, as COCOeval reports it) and the instance counts.
+    Ground truth smaller than ``ignore_below`` pixels is ignored as COCO ignores crowds:
+    neither missed nor matched, and a prediction on it is no false positive."""
     classes = sorted(set(int(c) for c in classes))
     images, gts, dts = [], [], []
     for image_id, (truth, predicted) in enumerate(frames, start=1):
@@ -42,13 +48,15 @@ def mask_ap(
             if m.cls in classes:
                 rle = _rle(m.mask)
                 gts.append({"id": len(gts) + 1, "image_id": image_id, "category_id": m.cls,
-                            "segmentation": rle, "area": float(m.area), "iscrowd": 0,
+                            "segmentation": rle, "area": float(m.area),
+                            "iscrowd": int(m.area < ignore_below),
                             "bbox": list(mask_utils.toBbox(rle))})  # fmt: skip
         for m in predicted:
             if m.cls in classes:
                 dts.append({"image_id": image_id, "category_id": m.cls,
                             "segmentation": _rle(m.mask), "score": m.score})  # fmt: skip
-    counts = {"images": len(images), "truth": len(gts), "predicted": len(dts)}
+    counts = {"images": len(images), "truth": sum(not g["iscrowd"] for g in gts),
+              "ignored": sum(g["iscrowd"] for g in gts), "predicted": len(dts)}  # fmt: skip
     if not gts or not dts:
         return {**dict.fromkeys(KEYS, 0.0 if gts else -1.0), **counts}
     coco = COCO()
