@@ -128,8 +128,9 @@ def main(argv: list[str] | None = None) -> int:
         help="teams bench: v1, v2 or both (default), for the team and demos rows",
     )  # fmt: skip
     parser.add_argument(
-        "--skip", nargs="+", default=(), choices=("workers", "machine", "demos"),
-        help="teams bench: parts to leave out (the 2-worker rows play 12 episodes per team)",
+        "--skip", nargs="+", default=(), choices=("workers", "machine", "demos", "pixels"),
+        help="teams bench: parts to leave out (the 2-worker rows play 12 episodes per team; "
+        "pixels: the pixels-track rows of heuristic-none and memory)",
     )  # fmt: skip
     parser.add_argument(
         "--procthor",
@@ -153,18 +154,22 @@ def main(argv: list[str] | None = None) -> int:
             return 0
     if args.only in (None, "teams"):
         from maniskill_tidy.eval.team_benchmark import (
+            PIXELS_TEAMS,
             TEAMS,
             bench_machine,
             bench_team,
             bench_workers,
+            pixels_jobs,
             report,
         )
         from maniskill_tidy.training.demos_benchmark import bench_demos
 
         teams, looks, skip, data = args.teams or TEAMS, args.looks, args.skip, args.eval_dataset
-        jobs = [(team, v) for v in looks for team in teams]
-        rows = [bench_team(team, dataset=data, env_id=v)
-                for team, v in tqdm(jobs, desc="teams bench", unit="row")]  # fmt: skip
+        jobs = [(team, v, "ground-truth") for v in looks for team in teams]
+        if "pixels" not in skip:  # where the look's segmenter is trained
+            jobs += pixels_jobs([t for t in teams if t in PIXELS_TEAMS], looks)
+        rows = [bench_team(team, dataset=data, env_id=v, segmentation=seg)
+                for team, v, seg in tqdm(jobs, desc="teams bench", unit="row")]  # fmt: skip
         workers = [] if "workers" in skip else [bench_workers(t, dataset=data) for t in teams]
         machine = None if "machine" in skip else bench_machine()
         demos = [] if "demos" in skip else [bench_demos(dataset=data, env_id=v) for v in looks]

@@ -135,3 +135,17 @@ def test_a_pixels_run_is_its_own_row_records_its_segmenter_and_replays(segmenter
     with pytest.raises(ValueError, match="camera-only"):
         expert = RunConfig("expert", "I", "test", None, episodes=1, segmentation=str(segmenter))
         evaluate(expert, tmp_path / "c", progress=False)
+
+
+@pytest.mark.slow  # a whole heuristic episode through a segmenter, and its replay
+def test_the_teams_bench_times_a_pixels_team_and_its_stages(segmenter):
+    from maniskill_tidy.eval.team_benchmark import bench_team, report
+
+    row = bench_team("heuristic-none", episodes=1, segmentation=str(segmenter))
+    assert row["team"] == "heuristic-none-pixels" and row["ratio"] > 1.0
+    ms = row["ms_per_frame"]
+    assert row["frames"] >= 3 and all(v > 0 for v in ms.values())
+    # the stages are part of the team's time, never more than it
+    assert sum(ms.values()) * row["frames"] / 1000 < row["team_s"]
+    text = report([row], [])
+    assert "heuristic-none-pixels" in text and "segmenter (ONNX Runtime" in text

@@ -21,10 +21,17 @@ from pathlib import Path
 
 from maniskill_tidy.eval import agent_processes
 from maniskill_tidy.eval.episode import Execution, play_episode
-from maniskill_tidy.eval.runner import RunConfig, evaluate, make_env, run_dir, select
-from maniskill_tidy.policies import make_team
+from maniskill_tidy.eval.runner import (
+    RunConfig,
+    evaluate,
+    make_env,
+    make_run_team,
+    run_dir,
+    select,
+)
 
 TEAMS = ("heuristic-none", "heuristic-broadcast", "hangrcom", "memory")
+PIXELS_TEAMS = ("heuristic-none", "memory")  # also timed in the pixels track, where weights are
 
 
 class ActionLog:
@@ -48,10 +55,17 @@ def replay(env, index: int, seed: int, steps: list[dict]) -> dict:
     return info
 
 
-def bench_team(policy: str, episodes: int = 3, dataset: str | None = None,
-               env_id: str = "HeteroTidy-v1") -> dict:  # fmt: skip
-    cfg = RunConfig(policy, "I", "test", dataset, episodes, env=env_id)
-    env, team = make_env(cfg), make_team(policy)
+def bench_team(
+    policy: str,
+    episodes: int = 3,
+    dataset: str | None = None,
+    env_id: str = "HeteroTidy-v1",
+    segmentation: str = "ground-truth",
+) -> dict:
+    """``segmentation``: "learned" times the team in the pixels track (its segmenter, instances
+    and labels inside the team's time, each also per frame)."""
+    cfg = RunConfig(policy, "I", "test", dataset, episodes, env=env_id, segmentation=segmentation)
+    env, team = make_env(cfg), make_run_team(cfg)
     seconds = {"team": 0.0, "env": 0.0}
     try:
         chosen = select([e.start for e in env.unwrapped.episodes.episodes], episodes)
@@ -62,6 +76,10 @@ def bench_team(policy: str, episodes: int = 3, dataset: str | None = None,
         # episode: the agents of every timed episode are made afresh.
         obs, info = env.reset(seed=chosen[0], options={"episode": chosen[0]})
         Execution(team, env.unwrapped, chosen[0]).step(obs, info)
+        segmenter = getattr(team, "segmenter", None)
+        if segmenter is not None:  # count the timed episodes only
+            segmenter.seconds = dict.fromkeys(segmenter.seconds, 0.0)
+            segmenter.frames = 0
         for i in chosen:
             log = ActionLog()
             start = time.perf_counter()
@@ -77,14 +95,35 @@ def bench_team(policy: str, episodes: int = 3, dataset: str | None = None,
     finally:
         env.close()
     n = len(chosen)
-    return {
-        "team": policy,
+    row = {
+        "team": policy + ("-pixels" if cfg.pixels else ""),
         "env_id": env_id,
         "episodes": n,
         "team_s": seconds["team"] / n,
         "env_s": seconds["env"] / n,
         "ratio": seconds["team"] / seconds["env"],
     }
+    if segmenter is not None and segmenter.frames:
+        row["frames"] = segmenter.frames
+        row["ms_per_frame"] = {k: 1000 * v / segmenter.frames for k, v in segmenter.seconds.items()}
+    return row
+
+
+def pixels_jobs(teams: list[str], looks: tuple[str, ...]) -> list[tuple[str, str, str]]:
+    """(team, look, "learned") for each look whose segmenter is trained (``make
+    train-segmenter``); the others are left out, and said so."""
+    import sys
+
+    jobs = []
+    for look in looks:
+        cfg = RunConfig("heuristic-none", "I", "test", None, 1, env=look, segmentation="learned")
+        weights = Path(cfg.segmenter()) / "model.pt"
+        if not weights.is_file():
+            print(f"pixels rows of {look} left out: no {weights} (make train-segmenter)",
+                  file=sys.stderr)  # fmt: skip
+            continue
+        jobs += [(team, look, "learned") for team in teams]
+    return jobs
 
 
 def cpu_seconds() -> float:
@@ -165,6 +204,15 @@ def report(
             f"{r['team']:>20} {r['env_id']:>13} {r['episodes']:>8} {r['team_s']:>9.2f} "
             f"{r['env_s']:>8.2f} {r['ratio']:>6.2f}"
         )
+    pixels = [r for r in rows if "ms_per_frame" in r]
+    if pixels:
+        lines.append(f"{'pixels track':>20} {'env':>13} {'frames':>8} ms per agent frame: "
+                     "segmenter (ONNX Runtime, 1 thread) / instances / labels, tracks")  # fmt: skip
+    for r in pixels:
+        ms = r["ms_per_frame"]
+        lines.append(f"{r['team']:>20} {r['env_id']:>13} {r['frames']:>8} {'':>20}"
+                     f"{ms['segmenter']:.1f} / {ms['instances']:.1f} / "
+                     f"{ms['labels']:.1f}")  # fmt: skip
     # one process already keeping c cores busy, two on 2 cores can do at most 2 / c as much
     if workers:
         lines.append(f"{'team':>20} {'episodes':>8} {'2 workers / 1':>14} {'steady':>7} "

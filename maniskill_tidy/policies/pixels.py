@@ -23,6 +23,7 @@ in view is aimed at no pixel (the env names the failure, as for an id not in vie
 from __future__ import annotations
 
 import dataclasses
+import time
 from typing import ClassVar
 
 import numpy as np
@@ -56,9 +57,15 @@ class Segmenter:
         if folder not in self._loaded:  # one thread: beside the env and the teammates
             self._loaded[folder] = (Runtime(load_segmenter(folder), 1), weights_sha256(folder))
         self.runtime, self.sha256 = self._loaded[folder]
+        # seconds spent per stage and frames seen in this process (``bench --only teams``)
+        self.seconds = {"segmenter": 0.0, "instances": 0.0, "labels": 0.0}
+        self.frames = 0
 
     def __call__(self, rgb: np.ndarray, depth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        start = time.perf_counter()
         labels, probs = self.runtime(rgb[None], depth.reshape(1, *depth.shape[:2]))
+        self.seconds["segmenter"] += time.perf_counter() - start
+        self.frames += 1
         return labels[0], probs[0]
 
 
@@ -137,7 +144,11 @@ class PixelsAgent(Agent):
         K, E = obs["intrinsics"], obs["extrinsics"]
         camera = camera_position(E)
         objects = []
-        for m in split_instances(labels, depth, self.instance_classes, probs):
+        start = time.perf_counter()
+        masks = split_instances(labels, depth, self.instance_classes, probs)
+        named = time.perf_counter()
+        self.segmenter.seconds["instances"] += named - start
+        for m in masks:
             if c.is_pickupable(m.cls):
                 objects.append(m)
                 continue
@@ -155,6 +166,7 @@ class PixelsAgent(Agent):
                 sid = self.held
             seg[m.mask] = sid
         self.points = (depth, K, E)
+        self.segmenter.seconds["labels"] += time.perf_counter() - named
         return seg
 
     def _furniture_at(self, type_name: str, p: np.ndarray) -> str | None:
