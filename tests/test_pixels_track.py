@@ -149,3 +149,16 @@ def test_the_teams_bench_times_a_pixels_team_and_its_stages(segmenter):
     assert sum(ms.values()) * row["frames"] / 1000 < row["team_s"]
     text = report([row], [])
     assert "heuristic-none-pixels" in text and "segmenter (ONNX Runtime" in text
+
+
+def test_show_masks_draws_each_agents_frame_beside_the_truth(segmenter, tmp_path):
+    from maniskill_tidy.eval.masks_figure import masks_figure
+    from tests.test_cli_errors import cli, one_line_error
+
+    out = masks_figure(tmp_path / "masks.png", str(segmenter), "HeteroTidy-v1", steps=6)
+    assert out.read_bytes()[:4] == b"\x89PNG"
+    one_line_error(cli("show-masks", "--segmenter", str(tmp_path / "none"), "--out",
+                       str(tmp_path / "m.png")), "model.pt not found")  # fmt: skip
+    one_line_error(cli("show-masks", "--segmenter", str(segmenter), "--out",
+                       str(tmp_path / "m.jpg")), "expected a .png")  # fmt: skip
+    assert not (tmp_path / "m.png").exists()

@@ -6,7 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
-from maniskill_tidy.cli.options import episode_options
+from maniskill_tidy.cli.options import env_option, episode_options
 
 
 def _show_assets(args: argparse.Namespace) -> int:
@@ -105,6 +105,19 @@ def _check_render(args: argparse.Namespace) -> int:
     return 0
 
 
+def _show_masks(args: argparse.Namespace) -> int:
+    from maniskill_tidy.eval.masks_figure import masks_figure
+    from maniskill_tidy.models.checkpoints import verify
+
+    if not args.out.endswith(".png"):
+        raise ValueError(f"--out {args.out}: expected a .png file name")
+    verify(Path(args.segmenter), "maniskill-tidy train-segmenter")
+    out = masks_figure(Path(args.out), args.segmenter, args.env, args.dataset, args.split,
+                       args.episode)  # fmt: skip
+    print(f"wrote {out}")
+    return 0
+
+
 def add_commands(sub: argparse._SubParsersAction) -> None:
     sa = sub.add_parser(
         "show-assets", help="every furniture and pickupable type in v2, with sources (PNG + MD)"
@@ -118,6 +131,17 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     sl.add_argument("--episode", type=int, default=0)
     sl.add_argument("--out", required=True)
     sl.set_defaults(func=_show_looks)
+
+    sm = sub.add_parser(
+        "show-masks", help="agent frames with the learned segmenter's classes beside the truth"
+    )
+    sm.add_argument("--segmenter", default="agents/segmenter-v2", help="a segmenter's folder")
+    sm.add_argument("--dataset", help="default: the shipped dataset")
+    sm.add_argument("--split", default="test")
+    sm.add_argument("--episode", type=int, default=0)
+    sm.add_argument("--out", required=True, help="a .png")
+    env_option(sm)
+    sm.set_defaults(func=_show_masks, env="HeteroTidy-v2")
 
     e = sub.add_parser(
         "run-episode", help="play one episode with an exploring policy; save camera and house PNGs"
