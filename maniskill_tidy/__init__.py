@@ -7,11 +7,17 @@ first made. ``parallel_env`` gives the PettingZoo view.
 
 from __future__ import annotations
 
+from importlib.metadata import PackageNotFoundError, version
 from typing import Any
 
 from maniskill_tidy.envs.registration import ENV_ID, ENV_V2, VERSIONS, register_gym
 
-__all__ = ["ENV_ID", "ENV_V2", "VERSIONS", "parallel_env", "register_gym"]
+__all__ = ["ENV_ID", "ENV_V2", "VERSIONS", "__version__", "parallel_env", "register_gym"]
+
+try:
+    __version__ = version("maniskill-tidy")
+except PackageNotFoundError:  # a source tree on sys.path, not installed
+    __version__ = "0+unknown"
 
 
 def parallel_env(**kwargs: Any):
