@@ -31,6 +31,7 @@ python3 -m venv "$OUT/venv"
 echo "[wheel-check] installing $(basename "$OUT"/dist/*.whl) into a fresh venv"
 "$OUT/venv/bin/pip" install -q -c constraints.txt "$OUT"/dist/*.whl 2>&1 \
   | { grep -v -e "is ignored: it is neither a file nor a directory" || true; }
+mkdir -p "$OUT/myteam" && cp examples/wanderer.py "$OUT/myteam/"  # a team of the user's own
 cd "$OUT"  # no source tree on the path from here
 # an empty cache: the env reads SAPIEN's BRDF table back with the wheel's shader (sim/brdf_lut.py)
 XDG_CACHE_HOME="$OUT/cache" venv/bin/python - <<'PY'
@@ -52,4 +53,8 @@ PY
 venv/bin/maniskill-tidy eval --policy expert --setting I --episodes 1 --out run
 # an installed package has no checkout to name: the run records the package's version
 grep -q '"maniskill-tidy 0.1.0"' run/eval/results/setting_I/expert/run.json
-echo "[wheel-check] ok: the wheel's env and one eval episode run outside the source tree"
+# a team written in a folder of its own (docs/teams.md) plays by its import path, two workers
+(cd myteam && ../venv/bin/maniskill-tidy eval --policy wanderer:WandererTeam --setting I \
+  --episodes 2 --workers 2 --out run >/dev/null)
+grep -q '"episodes": 2' myteam/run/eval/results/setting_I/wanderer/summary.json
+echo "[wheel-check] ok: the wheel's env, one eval episode and a user's own team run outside the source tree"
