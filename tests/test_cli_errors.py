@@ -94,6 +94,31 @@ def test_replay_verifies_the_recording_first(tmp_path):
     one_line_error(cli("replay", str(tmp_path / "none.rrd")), "not an .rrd recording")
 
 
+def test_replay_without_a_display_serves_the_web_viewer_on_this_machine_only(tmp_path):
+    """A fake ``rerun`` first on the PATH records how it is called."""
+    fake = tmp_path / "bin" / "rerun"
+    fake.parent.mkdir()
+    fake.write_text(f"#!/bin/sh\necho \"$@\" >> {tmp_path / 'calls'}\n")
+    fake.chmod(0o755)
+    rrd = tmp_path / "episode.rrd"
+    rrd.write_bytes(b"RRF2")
+    env = {"PATH": f"{fake.parent}:{os.environ['PATH']}", "DISPLAY": "", "WAYLAND_DISPLAY": ""}
+    p = cli("replay", str(rrd), env=env)
+    assert p.returncode == 0, p.stderr
+    assert "no display" in p.stdout and "127.0.0.1" in p.stdout
+    calls = (tmp_path / "calls").read_text().splitlines()
+    assert calls == [f"rrd verify {rrd}", f"{rrd} --web-viewer --bind 127.0.0.1"]
+    p = cli("replay", str(rrd), "--bind", "0.0.0.0", env={**env, "DISPLAY": ":0"})
+    assert (tmp_path / "calls").read_text().splitlines()[-1] == str(rrd)  # a native window
+
+
+def test_a_malformed_agent_config_is_refused_in_one_line(tmp_path):
+    bad = tmp_path / "agent.yaml"
+    bad.write_text("trainer: memory\nmodel: [unclosed\n")
+    one_line_error(cli("eval", "--policy", str(bad), "--setting", "I"), str(bad),
+                   "not valid YAML", "line")  # fmt: skip
+
+
 def test_a_team_preset_error_names_the_file(tmp_path):
     preset = tmp_path / "team.json"
     preset.write_text(json.dumps({"team": [[1, 0, 0], [0, 1, 1]]}))

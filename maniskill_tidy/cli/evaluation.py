@@ -131,9 +131,22 @@ def _replay(args: argparse.Namespace) -> int:
     if check.returncode != 0:
         reason = (check.stderr.strip().splitlines() or ["rerun rrd verify failed"])[-1]
         raise ValueError(f"{path} is damaged ({reason}); record the episode again")
-    cmd = [viewer, str(path)] + (["--web-viewer"] if args.web else [])
+    web = args.web or not has_display()
+    if web and not args.web:
+        print("no display (DISPLAY and WAYLAND_DISPLAY unset): serving the web viewer on "
+              f"{args.bind} instead; open the address it prints")  # fmt: skip
+    cmd = [viewer, str(path)] + (["--web-viewer", "--bind", args.bind] if web else [])
     print(" ".join(cmd))
     return subprocess.call(cmd)
+
+
+def has_display() -> bool:
+    """Whether a native window can open here (X11 or Wayland; macOS and Windows always)."""
+    import os
+
+    if sys.platform in ("darwin", "win32"):
+        return True
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
 
 
 def add_commands(sub: argparse._SubParsersAction) -> None:
@@ -212,5 +225,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
 
     rp = sub.add_parser("replay", help="open an episode recording (.rrd) in the rerun viewer")
     rp.add_argument("file")
-    rp.add_argument("--web", action="store_true", help="serve the web viewer instead")
+    rp.add_argument("--web", action="store_true",
+                    help="serve the web viewer instead (the default where there is no display)")
+    rp.add_argument("--bind", default="127.0.0.1",
+                    help="the web viewer's address (default: this machine only; 0.0.0.0 to share)")
     rp.set_defaults(func=_replay)

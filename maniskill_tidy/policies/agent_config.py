@@ -148,7 +148,13 @@ def read_config(path: Path, seen: tuple[Path, ...] = ()) -> dict:
     changes."""
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such agent config (a YAML file under agents/)")
-    raw = yaml.safe_load(path.read_text()) or {}
+    try:
+        raw = yaml.safe_load(path.read_text()) or {}
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        where = f" at line {mark.line + 1}" if mark is not None else ""
+        problem = getattr(e, "problem", None) or type(e).__name__
+        raise ValueError(f"{path}: not valid YAML ({problem}{where})") from None
     if not isinstance(raw, dict):
         raise ValueError(f"{path}: expected a mapping of settings, got {type(raw).__name__}")
     if "base" not in raw:
