@@ -83,3 +83,33 @@ def test_tracks_of_true_masks_follow_the_renderers_instances(render):
     agents_per_truth = [len({(te, a) for te, a, _ in v}) for v in truth_to_tracks.values()]
     tracks_per_truth = [len(v) for v in truth_to_tracks.values()]
     assert sum(tracks_per_truth) <= 1.3 * sum(agents_per_truth)  # rarely split in two
+
+
+def test_a_track_keeps_the_type_most_of_its_sightings_vote_for():
+    """A segmenter unsure in one frame joins the track it is close to (within RADIUS less the
+    penalty); the track's type follows the votes, and its label slot follows the type."""
+    from types import SimpleNamespace
+
+    from maniskill_tidy.policies.pixels import LabelTable
+
+    c = seg_classes()
+    mug, cup = c.index["Mug"], c.index["Cup"]
+    depth = np.full((100, 100), 2.0, dtype=np.float32)
+    tracker = Tracker()
+    here = box(40, 60, 40, 60)
+    for step, (cls, score) in enumerate([(mug, 0.9), (cup, 0.5), (mug, 0.8)]):
+        (_, track), = tracker.update([Mask2D(cls, here, score)], depth, K, camera_at(0.0), step)
+    assert len(tracker.tracks) == 1 and track.cls == mug and track.sightings == 3
+    public = SimpleNamespace(house=SimpleNamespace(furniture=[]))
+    table = LabelTable(public)
+    first = table.object_id(track)
+    assert table.instances[first].type == "Mug"
+    for step in range(3, 7):  # seen as a cup from now on: the votes turn
+        tracker.update([Mask2D(cup, here, 0.9)], depth, K, camera_at(0.0), step)
+    assert len(tracker.tracks) == 1 and track.cls == cup
+    second = table.object_id(track)
+    assert table.instances[second].type == "Cup" and table.object_id(track) == second
+    # another type 0.2 m away is another object: beyond RADIUS less the penalty
+    aside = box(40, 60, 50, 70)  # 10 px at 2 m: 0.2 m
+    (_, other), = tracker.update([Mask2D(mug, aside, 0.9)], depth, K, camera_at(0.0), 7)
+    assert other.id != track.id

@@ -2,15 +2,18 @@
 
 With ground truth, an object's segmentation id names it in every frame. A segmenter gives
 per-frame masks with a class and nothing more, so an agent that remembers objects must decide
-itself which mask of this frame is which object seen before: here, the nearest track of the
-same class whose position lies within :data:`RADIUS` of the mask's back-projected median
-(each track matched once per frame, nearest pairs first), else a new track. Track ids are the
-agent's own labels (1, 2, ...): they carry no origin and mean nothing to another agent.
+itself which mask of this frame is which object seen before: here, the nearest track whose
+position lies within :data:`RADIUS` of the mask's back-projected median, a track of another
+type only within ``RADIUS - CLASS_PENALTY`` (each track matched once per frame, cheapest pairs
+first), else a new track. A track's type is the one its sightings voted for most (each vote
+the mask's score): a segmenter unsure between two types in one frame is outvoted by the
+others, where a track per type would keep both. Track ids are the agent's own labels
+(1, 2, ...): they carry no origin and mean nothing to another agent.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -18,15 +21,21 @@ from maniskill_tidy.perception.instances import Mask2D
 from maniskill_tidy.perception.semantic_map import open3d_intrinsics, open3d_pose
 
 RADIUS = 0.3  # metres: one object's sightings fall this close together
+CLASS_PENALTY = 0.15  # metres added to the distance from a track of another type
 
 
 @dataclass
 class Track:
     id: int
-    cls: int
     position: np.ndarray  # world (x, y, z): the mean of its sightings' medians
     sightings: int
     last_step: int
+    votes: dict[int, float] = field(default_factory=dict)  # class -> summed scores
+
+    @property
+    def cls(self) -> int:
+        """The type most of its sightings voted for (the first seen on a tie)."""
+        return max(self.votes, key=self.votes.__getitem__)
 
 
 def camera_position(extrinsics) -> np.ndarray:
@@ -65,13 +74,13 @@ class Tracker:
             p = mask_position(m.mask, depth, intrinsics, extrinsics)
             if p is not None:
                 located.append((m, p))
-        pairs = []  # (distance, mask index, track id) of every admissible match
+        pairs = []  # (cost, mask index, track id) of every admissible match
         for i, (m, p) in enumerate(located):
             for t in self.tracks.values():
-                if t.cls == m.cls:
-                    dist = float(np.linalg.norm(t.position - p))
-                    if dist <= self.radius:
-                        pairs.append((dist, i, t.id))
+                cost = float(np.linalg.norm(t.position - p))
+                cost += 0.0 if t.cls == m.cls else CLASS_PENALTY
+                if cost <= self.radius:
+                    pairs.append((cost, i, t.id))
         matched: dict[int, int] = {}
         taken: set[int] = set()
         for _, i, tid in sorted(pairs):
@@ -86,7 +95,8 @@ class Tracker:
                 t.sightings += 1
                 t.last_step = step
             else:
-                t = Track(len(self.tracks) + 1, m.cls, p, 1, step)
+                t = Track(len(self.tracks) + 1, p, 1, step)
                 self.tracks[t.id] = t
+            t.votes[m.cls] = t.votes.get(m.cls, 0.0) + max(m.score, 1e-6)
             out.append((m, t))
         return out

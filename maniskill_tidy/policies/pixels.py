@@ -94,9 +94,11 @@ class LabelTable:
         self.by_id = {inst.id: sid for sid, inst in self.instances.items()}
 
     def object_id(self, track) -> int:
-        """The slot of a track (a new one for a new track; the oldest reused when full)."""
-        if track.id not in self.by_track:
-            t = self.classes.names[track.cls]
+        """The slot of a track: a new one for a new track, or when its type changed (its
+        sightings voted otherwise); the oldest of the type reused when all are taken."""
+        t = self.classes.names[track.cls]
+        sid = self.by_track.get(track.id)
+        if sid is None or self.instances[sid].type != t:
             k = self.classes.pickupable.index(t)
             slot = self.slots[t] % SLOTS
             self.slots[t] += 1
