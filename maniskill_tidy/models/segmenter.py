@@ -68,25 +68,35 @@ class Segmenter(nn.Module):
 
 
 def predict(model: Segmenter, rgb: np.ndarray, depth_m: np.ndarray, batch: int = 16):
-    """Labels (N, H, W) uint8 and the probability of each pixel's label (N, H, W) float32, at
-    the frames' resolution (nearest-upsampled from the network's half resolution). Each
-    frame's output depends on that frame alone (the network is in eval mode)."""
+    """Labels (N, H, W) uint8 and their confidence (N, H, W) float32 at the frames' resolution
+    (:class:`LabelHead`'s, nearest-upsampled), in torch: what :class:`Runtime` gives agents.
+    Each frame's output depends on that frame alone (the network is in eval mode)."""
+    head = LabelHead(model.eval())
     labels, probs = [], []
-    size = rgb.shape[1:3]
     with torch.inference_mode():
         for s in range(0, len(rgb), batch):
-            r = torch.from_numpy(np.array(rgb[s : s + batch])).permute(0, 3, 1, 2)
+            r = torch.from_numpy(np.array(rgb[s : s + batch])).permute(0, 3, 1, 2).float()
             d = torch.from_numpy(np.array(depth_m[s : s + batch], dtype=np.float32))
-            d = d.reshape(len(d), 1, *size)
-            p, lab = F.softmax(model(r.float(), d), dim=1).max(dim=1)
-            labels.append(F.interpolate(lab[:, None].float(), size=size, mode="nearest")[:, 0])
-            probs.append(F.interpolate(p[:, None], size=size, mode="nearest")[:, 0])
-    return torch.cat(labels).numpy().astype(np.uint8), torch.cat(probs).numpy()
+            label, prob = head(r, d.reshape(len(d), 1, *rgb.shape[1:3]))
+            labels.append(label.numpy())
+            probs.append(prob.numpy())
+    return upsample(np.concatenate(labels), np.concatenate(probs), rgb.shape[1:3])
+
+
+def upsample(label: np.ndarray, prob: np.ndarray, size) -> tuple[np.ndarray, np.ndarray]:
+    """Nearest-neighbour to ``size`` (H, W): each output pixel takes its source cell's value."""
+    h, w = size
+    rows, cols = np.arange(h) * label.shape[1] // h, np.arange(w) * label.shape[2] // w
+    prows, pcols = np.arange(h) * prob.shape[1] // h, np.arange(w) * prob.shape[2] // w
+    return label[:, rows][:, :, cols], prob[:, prows][:, :, pcols]
 
 
 class LabelHead(nn.Module):
-    """The segmenter ending in each pixel's label and its probability (at half resolution):
-    the softmax's maximum is 1 / sum(exp(logit - max)), so no full softmax is kept."""
+    """The segmenter ending in each pixel's label (at half resolution) and a confidence: the
+    winning class's softmax probability, 1 / sum(exp(logit - max)), on every other cell of the
+    label grid (a quarter of the input's resolution). The exponentials of ~100 classes at every
+    label cell cost agents more than the network's last layers on 2 CPU cores; a confidence
+    serves only to rank masks and weigh their votes, and each mask averages it."""
 
     def __init__(self, model: Segmenter) -> None:
         super().__init__()
@@ -94,9 +104,11 @@ class LabelHead(nn.Module):
 
     def forward(self, rgb: torch.Tensor, depth: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         logits = self.model(rgb, depth)
-        top, label = logits.max(dim=1)
-        prob = 1.0 / torch.exp(logits - top[:, None]).sum(dim=1)
-        return label.to(torch.uint8), prob
+        label = logits.argmax(dim=1).to(torch.uint8)
+        coarse = logits[:, :, ::2, ::2]
+        top = coarse.max(dim=1, keepdim=True).values
+        prob = 1.0 / torch.exp(coarse - top).sum(dim=1)
+        return label, prob
 
 
 class Runtime:
@@ -127,11 +139,9 @@ class Runtime:
 
     def __call__(self, rgb: np.ndarray, depth_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Frames (N, H, W, 3) uint8 and depth (N, H, W) metres -> labels (N, H, W) uint8 and
-        their probabilities, nearest-upsampled to the frames' resolution."""
+        their confidence, nearest-upsampled to the frames' resolution."""
         n, h, w = rgb.shape[:3]
         feed = {"rgb": np.ascontiguousarray(rgb.transpose(0, 3, 1, 2), dtype=np.float32),
                 "depth": np.ascontiguousarray(depth_m, dtype=np.float32).reshape(n, 1, h, w)}
         label, prob = self.session.run(None, feed)
-        rows = np.arange(h) * label.shape[1] // h
-        cols = np.arange(w) * label.shape[2] // w
-        return label[:, rows][:, :, cols], prob[:, rows][:, :, cols]
+        return upsample(label, prob, (h, w))

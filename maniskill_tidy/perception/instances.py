@@ -20,10 +20,20 @@ class Mask2D:
     cls: int
     mask: np.ndarray  # bool (H, W)
     score: float  # mean probability of the class over the mask (1 for ground truth)
+    box: tuple[slice, slice] | None = None  # rows and columns holding the mask, where known
 
     @property
     def area(self) -> int:
-        return int(self.mask.sum())
+        return int(self.mask[self.window].sum())
+
+    @property
+    def window(self) -> tuple[slice, slice]:
+        """Where to look for the mask's pixels: its box, or the whole frame."""
+        return self.box if self.box is not None else (slice(None), slice(None))
+
+    def paint(self, image: np.ndarray, value) -> None:
+        """``image[mask] = value``, touching the box only."""
+        image[self.window][self.mask[self.window]] = value
 
 
 def depth_edges(depth: np.ndarray) -> np.ndarray:
@@ -71,10 +81,11 @@ def split_instances(
         for k in range(1, n + 1):
             if sizes[k] < min_pixels:
                 continue
+            local = parts == k
             m = np.zeros(labels.shape, dtype=bool)
-            m[box] = parts == k
-            score = float(probabilities[m].mean()) if probabilities is not None else 1.0
-            out.append(Mask2D(int(c), m, score))
+            m[box] = local
+            score = float(probabilities[box][local].mean()) if probabilities is not None else 1.0
+            out.append(Mask2D(int(c), m, score, box))
     return out
 
 
@@ -102,5 +113,5 @@ def object_instances(
         votes = np.bincount(labels[m.mask], weights=p[m.mask], minlength=256)
         c = int(np.argmax(votes))
         share = float(votes[c] / max(votes.sum(), 1e-9))
-        out.append(Mask2D(c, m.mask, float(p[m.mask].mean()) * share))
+        out.append(Mask2D(c, m.mask, float(p[m.mask].mean()) * share, m.box))
     return out

@@ -44,12 +44,19 @@ def camera_position(extrinsics) -> np.ndarray:
     return -E[:3, :3].T @ E[:3, 3]
 
 
-def mask_position(mask: np.ndarray, depth: np.ndarray, intrinsics, extrinsics) -> np.ndarray | None:
-    """The median world point of a mask's pixels with a depth (None if none has one)."""
+def mask_position(
+    mask: np.ndarray | Mask2D, depth: np.ndarray, intrinsics, extrinsics
+) -> np.ndarray | None:
+    """The median world point of a mask's pixels with a depth (None if none has one); a
+    :class:`Mask2D` is looked at inside its box only."""
     d = depth.reshape(depth.shape[:2])
-    rows, cols = np.nonzero(mask & (d > 0))
+    window = mask.window if isinstance(mask, Mask2D) else (slice(None), slice(None))
+    mask = mask.mask if isinstance(mask, Mask2D) else mask
+    rows, cols = np.nonzero(mask[window] & (d[window] > 0))
     if not len(rows):
         return None
+    rows = rows + (window[0].start or 0)
+    cols = cols + (window[1].start or 0)
     fx, fy, cx, cy = open3d_intrinsics(intrinsics).astype(np.float64)
     z = d[rows, cols].astype(np.float64)
     camera = np.stack([(cols - cx) * z / fx, (rows - cy) * z / fy, z])
@@ -71,16 +78,19 @@ class Tracker:
         """Each mask with a world position, paired with the track it continues or starts."""
         located = []
         for m in masks:
-            p = mask_position(m.mask, depth, intrinsics, extrinsics)
+            p = mask_position(m, depth, intrinsics, extrinsics)
             if p is not None:
                 located.append((m, p))
         pairs = []  # (cost, mask index, track id) of every admissible match
-        for i, (m, p) in enumerate(located):
-            for t in self.tracks.values():
-                cost = float(np.linalg.norm(t.position - p))
-                cost += 0.0 if t.cls == m.cls else CLASS_PENALTY
-                if cost <= self.radius:
-                    pairs.append((cost, i, t.id))
+        tracks = list(self.tracks.values())
+        if tracks and located:
+            where = np.array([t.position for t in tracks])
+            kinds = np.array([t.cls for t in tracks])
+            for i, (m, p) in enumerate(located):
+                cost = np.linalg.norm(where - p, axis=1) + np.where(kinds == m.cls, 0.0,
+                                                                   CLASS_PENALTY)  # fmt: skip
+                for j in np.nonzero(cost <= self.radius)[0]:
+                    pairs.append((float(cost[j]), i, tracks[j].id))
         matched: dict[int, int] = {}
         taken: set[int] = set()
         for _, i, tid in sorted(pairs):

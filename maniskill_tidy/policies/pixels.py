@@ -28,7 +28,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from maniskill_tidy.envs.actions import Action, Targeted
+from maniskill_tidy.envs.actions import MIN_PIXELS, Action, Targeted
 from maniskill_tidy.perception.instances import split_instances
 from maniskill_tidy.perception.seg_classes import STRUCTURE, seg_classes
 from maniskill_tidy.perception.tracks import Tracker, camera_position, mask_position
@@ -147,26 +147,26 @@ class PixelsAgent(Agent):
         camera = camera_position(E)
         objects = []
         start = time.perf_counter()
-        masks = split_instances(labels, depth, self.instance_classes, probs)
+        masks = split_instances(labels, depth, self.instance_classes, probs, MIN_PIXELS)
         named = time.perf_counter()
         self.segmenter.seconds["instances"] += named - start
         for m in masks:
             if c.is_pickupable(m.cls):
                 objects.append(m)
                 continue
-            p = mask_position(m.mask, depth, K, E)
+            p = mask_position(m, depth, K, E)
             if p is None:
                 continue
             if m.cls == robot:
                 if np.hypot(*(p - camera)[:2]) > OWN_BODY:  # not its own base
-                    seg[m.mask] = table.structure[robot]
+                    m.paint(seg, table.structure[robot])
             elif (fid := self._furniture_at(c.names[m.cls].split(":", 1)[1], p)) is not None:
-                seg[m.mask] = table.furniture[fid]
+                m.paint(seg, table.furniture[fid])
         for m, track in self.tracker.update(objects, depth, K, E, step):
             sid = table.object_id(track)
             if self.held and self._is_held(m, depth, K, E, camera):
                 sid = self.held
-            seg[m.mask] = sid
+            m.paint(seg, sid)
         self.points = (depth, K, E)
         self.segmenter.seconds["labels"] += time.perf_counter() - named
         return seg
@@ -184,7 +184,7 @@ class PixelsAgent(Agent):
         held_type = self.table.instances[self.held].type
         if self.table.classes.names[m.cls] != held_type:
             return False
-        p = mask_position(m.mask, depth, K, E)
+        p = mask_position(m, depth, K, E)
         return p is not None and float(np.linalg.norm(p - camera)) <= HOLD_RANGE
 
     def observe(self, view: AgentView) -> None:
