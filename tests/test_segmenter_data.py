@@ -89,6 +89,10 @@ def test_instances_split_at_depth_jumps_and_score_a_perfect_prediction_at_ap_one
     depth[10:20, 5:20], depth[10:20, 20:35] = 1.0, 2.0
     parts = split_instances(labels, depth, [7])
     assert sorted(p.area for p in parts) == [150, 150] and {p.cls for p in parts} == {7}
+    # a class not joined keeps its pixels on depth edges out: its outline against the floor
+    # behind it and against the other box, one pixel all round (10 x 15 -> 8 x 13)
+    assert sorted(p.area for p in split_instances(labels, depth, [7], joined=[])) == [104, 104]
+    assert all(p.mask[p.window].any() and not p.mask[:, :5].any() for p in parts)
     depth[10:20, 20:35] = 1.02  # the same surface: one instance
     assert [p.area for p in split_instances(labels, depth, [7])] == [300]
 

@@ -56,13 +56,19 @@ def split_instances(
     classes: list[int] | np.ndarray,
     probabilities: np.ndarray | None = None,
     min_pixels: int = MIN_PIXELS,
+    joined: list[int] | np.ndarray | None = None,
 ) -> list[Mask2D]:
     """The instances of ``classes`` in a label image (H, W). ``probabilities`` (H, W): the
     segmenter's probability of the label it chose per pixel, for each instance's score. Each
-    class is worked on inside its bounding box only."""
+    class is worked on inside its bounding box only. ``joined``: the classes whose pixels on a
+    depth edge join the part nearest them (default all); the others' stay out of every part
+    (a mask only placed, never aimed at, needs no outline)."""
     edges = depth_edges(depth)
     present = np.zeros(256, dtype=bool)
     present[np.asarray(classes, dtype=np.int64)] = True
+    join = present if joined is None else np.zeros(256, dtype=bool)
+    if joined is not None:
+        join[np.asarray(joined, dtype=np.int64)] = True
     boxes = ndimage.find_objects(np.where(present[labels], labels, 0).astype(np.int32))
     out = []
     for index, box in enumerate(boxes):
@@ -74,7 +80,7 @@ def split_instances(
         parts, n = ndimage.label(cut)
         if n == 0:
             parts, n = ndimage.label(mask)
-        elif (mask & ~cut).any():  # edge pixels join the part of their nearest pixel
+        elif join[c] and (mask & ~cut).any():  # edge pixels join the nearest part
             _, (iy, ix) = ndimage.distance_transform_edt(parts == 0, return_indices=True)
             parts = np.where(mask, parts[iy, ix], 0)
         sizes = np.bincount(parts.ravel(), minlength=n + 1)

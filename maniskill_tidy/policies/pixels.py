@@ -125,6 +125,7 @@ class PixelsAgent(Agent):
                                  if n == "robot" or n.startswith("furniture:")
                                  or c.is_pickupable(i)]  # fmt: skip
         self.furniture_by_id = public.house.furniture_by_id()
+        self.object_classes = [i for i in range(len(c.names)) if c.is_pickupable(i) and i]
         self.footprints: dict[str, list] = {}  # furniture type -> [(id, footprint)]
         for f in public.house.furniture:
             self.footprints.setdefault(f.type, []).append((f.id, f.footprint()))
@@ -147,7 +148,8 @@ class PixelsAgent(Agent):
         camera = camera_position(E)
         objects = []
         start = time.perf_counter()
-        masks = split_instances(labels, depth, self.instance_classes, probs, MIN_PIXELS)
+        masks = split_instances(labels, depth, self.instance_classes, probs, MIN_PIXELS,
+                                joined=self.object_classes)  # fmt: skip
         named = time.perf_counter()
         self.segmenter.seconds["instances"] += named - start
         for m in masks:
