@@ -76,7 +76,11 @@ def test_a_tiny_segmenter_trains_resumes_and_loads(tiny_data, tmp_path, monkeypa
     from maniskill_tidy.models.segmenter import Runtime
 
     with np.load(sorted((tiny_data / "test").glob("*.npz"))[0]) as z:
-        ort_labels, ort_probs = Runtime(model)(z["rgb"][:2], z["depth_mm"][:2] / 1000.0)
+        z_rgb, z_depth = z["rgb"][:2], z["depth_mm"][:2] / 1000.0
+    ort_labels, ort_probs = Runtime(model)(z_rgb, z_depth)
     assert ort_labels.shape == labels.shape and ort_labels.dtype == np.uint8
     assert (ort_labels == labels).mean() > 0.995
     assert np.abs(ort_probs - probs)[ort_labels == labels].max() < 1e-3
+    # the agents' frames in one batch: each frame's labels are those it gets alone
+    alone = [Runtime(model)(z_rgb[i : i + 1], z_depth[i : i + 1])[0][0] for i in range(2)]
+    assert all((ort_labels[i] == alone[i]).all() for i in range(2))

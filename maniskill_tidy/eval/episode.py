@@ -38,6 +38,7 @@ from maniskill_tidy.policies.base import (
     PublicInfo,
 )
 from maniskill_tidy.policies.channel import CENTRAL, Channel, Outbox
+from maniskill_tidy.policies.pixels import PixelsTeam
 
 
 def _read_only(obs: dict) -> dict[str, np.ndarray]:
@@ -125,6 +126,9 @@ class Execution:
                 )
             self.t += 1
             return dict(zip(active, acts, strict=True))
+        if isinstance(self.team, PixelsTeam) and not self.remote:  # the benchmark's segmenter,
+            # one call for all frames; a team's own code never gets its frames together
+            self.team.prepare({n: views[n].obs for n in active})
         self._each("observe", {n: (views[n],) for n in active})
         for r in range(self.team.rounds):
             self.channel.round = r

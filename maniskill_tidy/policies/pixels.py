@@ -54,19 +54,52 @@ class Segmenter:
         from maniskill_tidy.models.checkpoints import load_segmenter, weights_sha256
         from maniskill_tidy.models.segmenter import Runtime
 
-        if folder not in self._loaded:  # one thread: beside the env and the teammates
-            self._loaded[folder] = (Runtime(load_segmenter(folder), 1), weights_sha256(folder))
+        if folder not in self._loaded:  # the threads the renderer may use in this process
+            runtime = Runtime(load_segmenter(folder), render_threads())
+            self._loaded[folder] = (runtime, weights_sha256(folder))
         self.runtime, self.sha256 = self._loaded[folder]
         # seconds spent per stage and frames seen in this process (``bench --only teams``)
         self.seconds = {"segmenter": 0.0, "instances": 0.0, "labels": 0.0}
         self.frames = 0
+        self.pending: dict[str, tuple[np.ndarray, np.ndarray]] = {}
 
-    def __call__(self, rgb: np.ndarray, depth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def batch(self, frames: dict[str, tuple[np.ndarray, np.ndarray]]) -> None:
+        """Segment the step's frames of every agent in one call (``PixelsTeam.prepare``); each
+        frame's labels depend on that frame alone, and only its agent takes them."""
+        if not frames:
+            return
+        start = time.perf_counter()
+        names = list(frames)
+        rgb = np.stack([np.asarray(frames[n][0]) for n in names])
+        depth = np.stack([frames[n][1] for n in names])
+        labels, probs = self.runtime(rgb, depth)
+        self.pending = {n: (labels[i], probs[i]) for i, n in enumerate(names)}
+        self.seconds["segmenter"] += time.perf_counter() - start
+        self.frames += len(names)
+
+    def __call__(self, name: str, rgb: np.ndarray, depth: np.ndarray):
+        """Agent ``name``'s labels and confidence: from this step's batch, else on its own."""
+        if name in self.pending:
+            return self.pending.pop(name)
         start = time.perf_counter()
         labels, probs = self.runtime(rgb[None], depth.reshape(1, *depth.shape[:2]))
         self.seconds["segmenter"] += time.perf_counter() - start
         self.frames += 1
         return labels[0], probs[0]
+
+
+def render_threads() -> int:
+    """As many threads as the renderer may take here: a worker's share (LP_NUM_THREADS, set by
+    ``common/parallel.py``), else every core."""
+    import os
+
+    return max(1, int(os.environ.get("LP_NUM_THREADS") or os.cpu_count() or 1))
+
+
+def frame_arrays(obs: dict) -> tuple[np.ndarray, np.ndarray]:
+    """An observation's RGB and its depth as an (H, W) float32 image in metres."""
+    depth = np.asarray(obs["depth"], dtype=np.float32).reshape(obs["rgb"].shape[:2])
+    return np.asarray(obs["rgb"]), depth
 
 
 class LabelTable:
@@ -137,8 +170,8 @@ class PixelsAgent(Agent):
     # ------------------------------------------------------------------ perception
     def _frame(self, obs: dict, step: int) -> np.ndarray:
         c, table = self.table.classes, self.table
-        depth = np.asarray(obs["depth"], dtype=np.float32).reshape(obs["rgb"].shape[:2])
-        labels, probs = self.segmenter(np.asarray(obs["rgb"]), depth)
+        rgb, depth = frame_arrays(obs)
+        labels, probs = self.segmenter(self.name, rgb, depth)
         seg = np.zeros(labels.shape, dtype=np.int32)
         robot = c.index["robot"]
         for cls, sid in table.structure.items():
@@ -272,6 +305,11 @@ class PixelsTeam(Team):
 
     def make_agent(self, name: str, public: PublicInfo, outbox: Outbox) -> Agent:
         return PixelsAgent(self.inner.make_agent, name, public, outbox, self.segmenter)
+
+    def prepare(self, observations: dict[str, dict]) -> None:
+        """Before the agents observe: their frames through the segmenter in one batch (each
+        output depends on its own frame only, and goes to its own agent alone)."""
+        self.segmenter.batch({n: frame_arrays(o) for n, o in observations.items()})
 
     def make_central(self, public: PublicInfo, outbox: Outbox):
         return self.inner.make_central(public, outbox)
