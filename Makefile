@@ -35,8 +35,10 @@ demo: setup
 	$(PY) -m maniskill_tidy.cli eval --policy heuristic-broadcast --setting I --split test --episodes 2 --dataset $(DEMO_DIR)/dataset --record all --out $(DEMO_DIR)
 	$(PY) -m maniskill_tidy.cli eval --policy hangrcom --setting I --split test --episodes 2 --dataset $(DEMO_DIR)/dataset --record all --out $(DEMO_DIR)
 	$(PY) -m maniskill_tidy.cli eval --policy memory --setting I --split test --episodes 2 --dataset $(DEMO_DIR)/dataset --record all --out $(DEMO_DIR)
+	$(PY) -m maniskill_tidy.cli show-masks --segmenter agents/segmenter-v2 --dataset $(DEMO_DIR)/dataset --split test --episode 0 --out $(DEMO_DIR)/masks.png
+	$(PY) -m maniskill_tidy.cli eval --env HeteroTidy-v2 --policy memory --segmentation learned --setting I --split test --episodes 2 --dataset $(DEMO_DIR)/dataset --out $(DEMO_DIR)
 	$(PY) -m maniskill_tidy.cli leaderboard --root $(DEMO_DIR)/eval
-	@echo "demo pictures: $(DEMO_DIR)/looks.png (v1 and v2) $(DEMO_DIR)/house.png $(DEMO_DIR)/dataset-stats.png $(DEMO_DIR)/episode/*.png $(DEMO_DIR)/map.png"
+	@echo "demo pictures: $(DEMO_DIR)/looks.png (v1 and v2) $(DEMO_DIR)/masks.png (the pixels track's segmenter) $(DEMO_DIR)/house.png $(DEMO_DIR)/dataset-stats.png $(DEMO_DIR)/episode/*.png $(DEMO_DIR)/map.png"
 	@echo "demo evaluation: $(DEMO_DIR)/eval/LEADERBOARD.md; recordings: $(DEMO_DIR)/recordings (maniskill-tidy replay FILE)"
 
 bench: setup
