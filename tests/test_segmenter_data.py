@@ -123,6 +123,15 @@ def test_instances_split_at_depth_jumps_and_score_a_perfect_prediction_at_ap_one
     ignored = mask_ap(big, pickupable, (224, 224), ignore_below=20)
     assert ignored["AP50"] == 1.0 and ignored["ignored"] == tiny_ones
     assert ignored["truth"] == missed["truth"] - tiny_ones
+    # where agents draw the line: wrong-type copies at a low score fall under it
+    from maniskill_tidy.eval.mask_ap import score_threshold
+
+    noisy = [(t, [Mask2D(m.cls, m.mask, 0.9) for m in t] + [Mask2D(w.cls, w.mask, 0.2)
+                                                            for w in wt])
+             for t, (_, wt) in zip(truth, wrong, strict=True)]  # fmt: skip
+    line = score_threshold(noisy, pickupable, (224, 224), ignore_below=20)
+    assert line["threshold"] == 0.9 and line["f1"] == 1.0 and line["precision"] == 1.0
+    assert 0.0 < mask_ap(noisy, pickupable, (224, 224), ignore_below=20)["AP50"] <= 1.0
 
 
 def test_the_segmenter_gives_class_logits_at_half_resolution_and_learns():

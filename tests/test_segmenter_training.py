@@ -39,6 +39,7 @@ def test_a_tiny_segmenter_trains_resumes_and_loads(tiny_data, tmp_path, monkeypa
     assert card["frames"] == {"train": 27, "val": 27, "test": 27}  # 3 teams x 3 steps x 3 agents
     for key in ("AP", "AP50", "AP_small", "pixel_accuracy_pickupable", "truth", "predicted"):
         assert key in card["test"], key
+    assert set(card["agent_threshold"]) == {"threshold", "f1", "precision", "recall"}
     assert card["test"]["truth"] > 0 and card["train_seconds"] > 0
     assert card["curve"][-1]["train_loss"] < card["curve"][0]["train_loss"]
     saved = json.loads((tmp_path / "a" / "card.json").read_text())

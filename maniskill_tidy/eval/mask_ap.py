@@ -30,16 +30,9 @@ def _rle(mask: np.ndarray) -> dict:
     return rle
 
 
-def mask_ap(
-    frames: Iterable[tuple[list[Mask2D], list[Mask2D]]],
-    classes: Iterable[int],
-    shape,
-    ignore_below: int = 0,
-) -> dict[str, float]:
-    """``frames``: per frame (ground truth, predictions). Returns :data:`KEYS` (-1 where no
-    ground truth of that size exists, as COCOeval reports it) and the instance counts.
-    Ground truth smaller than ``ignore_below`` pixels is ignored as COCO ignores crowds:
-    neither missed nor matched, and a prediction on it is no false positive."""
+def _evaluated(frames, classes, shape, ignore_below: int):
+    """COCOeval of the frames' masks (evaluated and accumulated; None when either side is
+    empty) and the instance counts."""
     classes = sorted(set(int(c) for c in classes))
     images, gts, dts = [], [], []
     for image_id, (truth, predicted) in enumerate(frames, start=1):
@@ -58,7 +51,7 @@ def mask_ap(
     counts = {"images": len(images), "truth": sum(not g["iscrowd"] for g in gts),
               "ignored": sum(g["iscrowd"] for g in gts), "predicted": len(dts)}  # fmt: skip
     if not gts or not dts:
-        return {**dict.fromkeys(KEYS, 0.0 if gts else -1.0), **counts}
+        return None, counts
     coco = COCO()
     coco.dataset = {"images": images, "annotations": gts,
                     "categories": [{"id": c} for c in classes]}  # fmt: skip
@@ -70,4 +63,51 @@ def mask_ap(
         ev.evaluate()
         ev.accumulate()
         ev.summarize()
+    return ev, counts
+
+
+def mask_ap(
+    frames: Iterable[tuple[list[Mask2D], list[Mask2D]]],
+    classes: Iterable[int],
+    shape,
+    ignore_below: int = 0,
+) -> dict[str, float]:
+    """``frames``: per frame (ground truth, predictions). Returns :data:`KEYS` (-1 where no
+    ground truth of that size exists, as COCOeval reports it) and the instance counts.
+    Ground truth smaller than ``ignore_below`` pixels is ignored as COCO ignores crowds:
+    neither missed nor matched, and a prediction on it is no false positive."""
+    ev, counts = _evaluated(frames, classes, shape, ignore_below)
+    if ev is None:
+        return {**dict.fromkeys(KEYS, 0.0 if counts["truth"] else -1.0), **counts}
     return {**{k: round(float(v), 4) for k, v in zip(KEYS, ev.stats[:6], strict=True)}, **counts}
+
+
+def score_threshold(
+    frames: Iterable[tuple[list[Mask2D], list[Mask2D]]],
+    classes: Iterable[int],
+    shape,
+    ignore_below: int = 0,
+) -> dict[str, float]:
+    """The score above which predicted masks give the best F1 at IoU 0.5 (a right type and
+    mask), with the precision and recall there: where an agent that acts on masks, unlike the
+    AP, must draw the line."""
+    ev, counts = _evaluated(frames, classes, shape, ignore_below)
+    if ev is None:
+        return {"threshold": 0.0, "f1": 0.0, "precision": 0.0, "recall": 0.0}
+    scores, hits, truths = [], [], 0
+    for e in ev.evalImgs:
+        if e is None or e["aRng"] != ev.params.areaRng[0]:  # "all" sizes only
+            continue
+        truths += int((~e["gtIgnore"].astype(bool)).sum())
+        keep = ~e["dtIgnore"][0].astype(bool)  # IoU 0.5
+        scores += list(np.asarray(e["dtScores"])[keep])
+        hits += list(e["dtMatches"][0][keep] > 0)
+    order = np.argsort(-np.asarray(scores), kind="stable")
+    tp = np.cumsum(np.asarray(hits, dtype=float)[order])
+    precision = tp / np.arange(1, len(tp) + 1)
+    recall = tp / max(truths, 1)
+    f1 = 2 * precision * recall / np.maximum(precision + recall, 1e-12)
+    k = int(np.argmax(f1))
+    return {"threshold": round(float(np.asarray(scores)[order][k]), 4),
+            "f1": round(float(f1[k]), 4), "precision": round(float(precision[k]), 4),
+            "recall": round(float(recall[k]), 4)}  # fmt: skip

@@ -23,7 +23,9 @@ in view is aimed at no pixel (the env names the failure, as for an id not in vie
 from __future__ import annotations
 
 import dataclasses
+import json
 import time
+from pathlib import Path
 from typing import ClassVar
 
 import numpy as np
@@ -58,6 +60,10 @@ class Segmenter:
             runtime = Runtime(load_segmenter(folder), render_threads())
             self._loaded[folder] = (runtime, weights_sha256(folder))
         self.runtime, self.sha256 = self._loaded[folder]
+        # object masks less confident than this are left out (the card's, chosen on val)
+        card = Path(folder) / "card.json"
+        chosen = json.loads(card.read_text()).get("agent_threshold") if card.is_file() else None
+        self.threshold = float(chosen["threshold"]) if chosen else 0.0
         # seconds spent per stage and frames seen in this process (``bench --only teams``)
         self.seconds = {"segmenter": 0.0, "instances": 0.0, "labels": 0.0}
         self.frames = 0
@@ -187,7 +193,8 @@ class PixelsAgent(Agent):
         self.segmenter.seconds["instances"] += named - start
         for m in masks:
             if c.is_pickupable(m.cls):
-                objects.append(m)
+                if m.score >= self.segmenter.threshold:
+                    objects.append(m)
                 continue
             p = mask_position(m, depth, K, E)
             if p is None:

@@ -24,7 +24,7 @@ from tqdm import tqdm
 
 from maniskill_tidy.common.files import write_atomic
 from maniskill_tidy.envs.actions import MIN_PIXELS
-from maniskill_tidy.eval.mask_ap import mask_ap
+from maniskill_tidy.eval.mask_ap import mask_ap, score_threshold
 from maniskill_tidy.models import checkpoints
 from maniskill_tidy.models.segmenter import Segmenter, predict
 from maniskill_tidy.perception.instances import Mask2D, split_instances
@@ -94,20 +94,33 @@ def truth_masks(cls: np.ndarray, instance: np.ndarray, pickupable: list[int]) ->
     return out
 
 
+def _pairs(model: Segmenter, frames: dict) -> tuple[list, list[int], np.ndarray]:
+    """Per frame (truth, predicted instances) over the pickupable types, as agents make them,
+    the pickupable classes and the predicted labels."""
+    classes = seg_classes()
+    pickupable = [i for i in range(len(classes.names)) if classes.is_pickupable(i)]
+    depth = frames["depth_mm"].astype(np.float32) / 1000.0
+    labels, probs = predict(model, frames["rgb"], depth)
+    pairs = [(truth_masks(frames["cls"][k], frames["instance"][k], pickupable),
+              split_instances(labels[k], depth[k], pickupable, probs[k]))
+             for k in range(len(labels))]  # fmt: skip
+    return pairs, pickupable, labels
+
+
+def agent_threshold(model: Segmenter, frames: dict) -> dict:
+    """The confidence under which agents leave an object mask out: the best F1 on val frames
+    (``mask_ap.score_threshold``), with its precision and recall."""
+    pairs, pickupable, labels = _pairs(model, frames)
+    return score_threshold(pairs, pickupable, labels.shape[1:3], ignore_below=MIN_PIXELS)
+
+
 def evaluate(model: Segmenter, frames: dict) -> dict:
     """Mask AP over the pickupable types (instances from the predicted labels and depth) of
     the objects an agent could act on (``MIN_PIXELS`` or more: the env's visibility; smaller
     ones ignored, also reported counted), and the share of pickupable pixels labelled with
     their type."""
     classes = seg_classes()
-    pickupable = [i for i in range(len(classes.names)) if classes.is_pickupable(i)]
-    depth = frames["depth_mm"].astype(np.float32) / 1000.0
-    labels, probs = predict(model, frames["rgb"], depth)
-    pairs = []
-    for k in range(len(labels)):
-        truth = truth_masks(frames["cls"][k], frames["instance"][k], pickupable)
-        pred = split_instances(labels[k], depth[k], pickupable, probs[k])
-        pairs.append((truth, pred))
+    pairs, pickupable, labels = _pairs(model, frames)
     out = mask_ap(pairs, pickupable, labels.shape[1:3], ignore_below=MIN_PIXELS)
     every = mask_ap(pairs, pickupable, labels.shape[1:3])  # tinier objects counted too
     out["AP50_every_size"], out["AP_every_size"] = every["AP50"], every["AP"]
@@ -243,6 +256,7 @@ def train_segmenter(cfg: SegTrainConfig, progress: bool = True) -> dict:
         "best_epoch": state["best_epoch"],
         "val": state["best"],
         "test": evaluate(model, test),  # reported once, for the epoch val chose
+        "agent_threshold": agent_threshold(model, val),  # chosen on val
         "curve": state["curve"],
         "train_seconds": round(state["seconds"], 1),
     }
