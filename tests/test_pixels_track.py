@@ -74,7 +74,7 @@ def segmenter(tmp_path_factory):
         cfg = SegDataConfig(None, split, "HeteroTidy-v1", every=3, max_steps=13, houses=1)
         build_segmenter_data(cfg, root / "data" / split, progress=False)
     cfg = SegTrainConfig(str(root / "data"), str(root / "segmenter-tiny"), epochs=3, batch=4,
-                         crop=96, widths=(8, 12, 16, 16, 16))  # fmt: skip
+                         crop=96, widths=(8, 12, 16, 16, 16), lr=0.01)  # fmt: skip
     train_segmenter(cfg, progress=False)
     return root / "segmenter-tiny"
 
