@@ -96,10 +96,12 @@ class Segmenter:
 
 def render_threads() -> int:
     """As many threads as the renderer may take here: a worker's share (LP_NUM_THREADS, set by
-    ``common/parallel.py``), else every core."""
+    ``common/parallel.py``), else every core this process may run on."""
     import os
 
-    return max(1, int(os.environ.get("LP_NUM_THREADS") or os.cpu_count() or 1))
+    from maniskill_tidy.common.parallel import worker_threads
+
+    return max(1, int(os.environ.get("LP_NUM_THREADS") or worker_threads(1)))
 
 
 def frame_arrays(obs: dict) -> tuple[np.ndarray, np.ndarray]:
