@@ -1,6 +1,6 @@
 """How often a Place step's target type was already among the agent's own detections. Beside
 the model card's object-head accuracy it tells a model that cannot know the target from one
-that does not remember it (docs/research-log.md, "The learned team: how we got there";
+that does not remember it (docs/research/research-log.md, "The learned team: how we got there";
 models/decision.py, ``suspects``).
 
     .venv/bin/python scripts/object_memory.py data/demos_detection_3tasks/setting_I/val

@@ -1,6 +1,6 @@
 """Per episode: how many misplaced objects any agent and the manipulators saw, and how many the
 team picked up, for one or more teams on the same episodes. It tells a team that cannot find
-the objects from one that finds them and does not fetch them (docs/research-log.md, "The
+the objects from one that finds them and does not fetch them (docs/research/research-log.md, "The
 learned team: how we got there").
 
     .venv/bin/python scripts/seen_and_picked.py --episodes 0,50,100,150 \
