@@ -439,6 +439,10 @@ def test_ablations_get_their_own_table_and_learned_rows_their_own_sa(tmp_path):
     without_wo_comm = {k: v for k, v in runs.items() if k != "wo_comm"}
     assert pareto_front(without_wo_comm) == [(0.0, 0.25), (240.0, 0.5)]  # the scripted sa
     assert pareto_front(without_wo_comm, learned_only=True) == [(0.0, 0.1), (240.0, 0.5)]
+    # a learned team on ground-truth perception (the object-memory team) is a learned row
+    memory = {**_summary("memory", [True] * 3 + [False], 300), "model_hash": "228bcdcab99f0bb9"}
+    with_memory = {**without_wo_comm, "memory": memory}
+    assert (300.0, 0.75) in pareto_front(with_memory, learned_only=True)
 
 
 def test_the_papers_orderings_are_checked_on_our_learned_rows():

@@ -150,6 +150,12 @@ def learned(summary: dict) -> bool:
     return str(summary.get("perception", "")).startswith("learned")
 
 
+def learned_row(summary: dict) -> bool:
+    """A row of a learned team: learned perception, or weights of its own (the object-memory
+    team's pointer reads ground-truth segmentation)."""
+    return learned(summary) or bool(summary.get("model_hash"))
+
+
 def sa_baseline(summary: dict, runs: dict[str, dict]) -> dict | None:
     """The SA run a row's CES is measured against: learned rows against the learned SA."""
     return runs.get("sa-learned") if learned(summary) else runs.get("sa")
@@ -330,7 +336,7 @@ def pareto_front(runs: dict[str, dict], learned_only: bool = False) -> list[tupl
     points = sorted(
         (s["metrics"]["All"]["ACm"] or 0.0, s["metrics"]["All"]["Success"] or 0.0)
         for s in runs.values()
-        if not s.get("privileged") and (learned(s) or not learned_only)
+        if not s.get("privileged") and (learned_row(s) or not learned_only)
     )
     front: list[tuple[float, float]] = []
     for acm, success in points:
