@@ -1,8 +1,9 @@
 """maniskill-tidy: heterogeneous multi-agent tidying-up on ManiSkill3 / SAPIEN.
 
-Importing the package registers ``HeteroTidy-v1`` with gymnasium without importing ManiSkill
-(a few seconds); the env module registers itself with ManiSkill's ``register_env`` when it is
-first made. ``parallel_env`` gives the PettingZoo view.
+Importing the package registers ``HeteroTidy-v1`` (the flat look) and ``HeteroTidy-v2`` (the
+realistic look) with gymnasium without importing ManiSkill (a few seconds); the env module
+registers itself with ManiSkill's ``register_env`` when it is first made. ``parallel_env`` gives
+the PettingZoo view of either.
 """
 
 from __future__ import annotations
@@ -21,7 +22,8 @@ except PackageNotFoundError:  # a source tree on sys.path, not installed
 
 
 def parallel_env(**kwargs: Any):
-    """A PettingZoo ``ParallelEnv`` of HeteroTidy-v1 (same keyword arguments as the env)."""
+    """A PettingZoo ``ParallelEnv`` of the env (its keyword arguments; ``env_id="HeteroTidy-v2"``
+    for the realistic look, where the PettingZoo module takes it)."""
     from maniskill_tidy.envs.pettingzoo_env import parallel_env as make
 
     return make(**kwargs)

@@ -97,6 +97,15 @@ def test_pettingzoo_parallel_api():
         parallel_api_test(p, num_cycles=20)
     finally:
         p.close()
+    v2 = maniskill_tidy.parallel_env(env_id="HeteroTidy-v2", split="test", obs_mode="rgb")
+    try:
+        assert v2.env.visuals == "realistic" and v2.metadata["name"] == "heterotidy_v2"
+        obs, _ = v2.reset(seed=0)
+        assert obs["agent_0"]["rgb"].shape == (224, 224, 3)
+    finally:
+        v2.close()
+    with pytest.raises(ValueError, match="expected one of"):
+        maniskill_tidy.parallel_env(env_id="HeteroTidy-v9")
 
 
 def test_capabilities_spaces_and_camera_heights(env):

@@ -162,9 +162,10 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     ev.add_argument(
         "--policy",
         required=True,
-        help="a team name: expert, random, sa, heuristic-none, heuristic-detection, "
-        "heuristic-broadcast, heuristic-central, hangrcom (an unknown name lists what is "
-        "registered), or a learned team's agent config (agents/NAME.yaml)",
+        help="a team name (`maniskill-tidy policies` lists them: expert, random, sa, "
+        "heuristic-none, -detection, -broadcast, -central, hangrcom, qmix, memory), a learned "
+        "team's agent config (agents/NAME.yaml), your own team as package.module:TeamClass, or "
+        "an installed package's team (entry point maniskill_tidy.teams)",
     )
     ev.add_argument("--setting", default="I", help="I, II or a preset JSON file")
     env_option(ev)

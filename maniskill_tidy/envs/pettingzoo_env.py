@@ -1,6 +1,8 @@
-"""A PettingZoo view of HeteroTidy-v1: one agent per robot, made as PettingZoo's own envs are.
+"""A PettingZoo view of HeteroTidy-v1 and -v2: one agent per robot, made as PettingZoo's own
+envs are.
 
-``parallel_env(setting="I")`` gives a ``ParallelEnv``; ``env(...)`` its AEC conversion. The team
+``parallel_env(setting="I")`` gives a ``ParallelEnv`` of v1,
+``parallel_env(env_id="HeteroTidy-v2")`` one of v2; ``env(...)`` its AEC conversion. The team
 shares one reward (the change in misplaced objects at reasonable places). An agent that chose
 ``Stop`` is terminated and leaves ``agents``; when the step limit truncates the episode every
 remaining agent is truncated.
@@ -15,13 +17,20 @@ from pettingzoo import ParallelEnv
 from pettingzoo.utils.conversions import parallel_to_aec
 
 from maniskill_tidy.envs.hetero_tidy import HeteroTidyEnv
+from maniskill_tidy.envs.registration import ENV_ID, VERSIONS
 
 
 class HeteroTidyParallelEnv(ParallelEnv):
     metadata = {"name": "hetero_tidy_v1", "render_modes": ["rgb_array"], "is_parallelizable": True}
 
-    def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
+    def __init__(
+        self, render_mode: str | None = None, env_id: str = ENV_ID, **kwargs: Any
+    ) -> None:
+        if env_id not in VERSIONS:
+            raise ValueError(f"env_id {env_id!r}: expected one of {sorted(VERSIONS)}")
+        kwargs.setdefault("visuals", VERSIONS[env_id])
         self.env = HeteroTidyEnv(render_mode=render_mode, **kwargs)
+        self.metadata = {**self.metadata, "name": env_id.lower().replace("-", "_")}
         self.render_mode = render_mode
         self.possible_agents = list(self.env.agent_names)
         self.agents = list(self.possible_agents)
