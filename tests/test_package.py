@@ -23,3 +23,13 @@ def test_version_citation_and_changelog_agree():
     changelog = (ROOT / "CHANGELOG.md").read_text()
     assert f"## [{version}]" in changelog and "## [Unreleased]" in changelog
     assert "@misc{" in (ROOT / "README.md").read_text()
+
+
+def test_the_layout_page_names_every_module():
+    """docs/layout.md lists each package's modules: a module added is a line to add there."""
+    text = (ROOT / "docs" / "layout.md").read_text()
+    block = text[text.index("## Modules") :]
+    package = ROOT / "maniskill_tidy"
+    missing = [str(p.relative_to(package)) for p in package.rglob("*.py")
+               if p.name != "__init__.py" and p.name not in block]  # fmt: skip
+    assert not missing, f"docs/layout.md does not name {missing}"
