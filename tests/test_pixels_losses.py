@@ -103,3 +103,17 @@ def test_the_command_reads_a_pixels_run_and_refuses_another(tmp_path):
     (run / "episodes.jsonl").write_text(json.dumps({"episode": "e", "success": True}) + "\n")
     one_line_error(cli("pixels-losses", str(run)), "no record holds object fates")
     one_line_error(cli("pixels-losses", str(tmp_path / "none")), "no episodes.jsonl")
+
+
+def test_object_fates_plays_a_camera_team_and_refuses_the_expert(tmp_path):
+    from tests.test_cli_errors import cli, one_line_error
+
+    p = cli("object-fates", "heuristic-none", "--split", "test", "--episodes", "1",
+            "--workers", "1", "--out", str(tmp_path / "fates.jsonl"))  # fmt: skip
+    assert p.returncode == 0, p.stderr[-2000:]
+    rows = [json.loads(line) for line in (tmp_path / "fates.jsonl").read_text().splitlines()]
+    assert rows and all(r["fate"] in ("never in view", "in view, never picked",
+                                      "picked, not placed", "placed") for r in rows)  # fmt: skip
+    assert "heuristic-none, Setting I, test: 1 episodes" in p.stdout
+    one_line_error(cli("object-fates", "expert"), "expected a camera team")
+    one_line_error(cli("object-fates", "memory", "--episodes", "0"), "expected a positive")

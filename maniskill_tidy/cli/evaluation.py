@@ -119,6 +119,23 @@ def _pixels_losses(args: argparse.Namespace) -> int:
     return 0
 
 
+def _object_fates(args: argparse.Namespace) -> int:
+    import json
+
+    from maniskill_tidy.common.files import write_atomic
+    from maniskill_tidy.eval.object_fates import object_fates, report
+
+    rows, failures, traces, n = object_fates(args.policy, args.setting, args.split,
+                                             args.episodes, args.dataset, args.workers,
+                                             args.trace)  # fmt: skip
+    for line in traces:
+        print(line)
+    if args.out is not None:
+        write_atomic(Path(args.out), "".join(json.dumps(r) + "\n" for r in rows).encode())
+    print(report(args.policy, args.setting, args.split, rows, failures, n))
+    return 0
+
+
 def _replay(args: argparse.Namespace) -> int:
     import shutil
     import subprocess
@@ -223,6 +240,21 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     pl.add_argument("--top", type=int, default=12, help="types listed (most objects lost first)")
     pl.add_argument("--json", help="also write the counts here")
     pl.set_defaults(func=_pixels_losses)
+
+    of = sub.add_parser(
+        "object-fates",
+        help="what became of each misplaced object in a camera team's episodes (ground truth)",
+    )
+    of.add_argument("policy", help="a camera team (memory, heuristic-detection, hangrcom, ...)")
+    of.add_argument("--setting", default="I", choices=["I", "II"])
+    of.add_argument("--split", default="val", choices=["train", "val", "test"])
+    of.add_argument("--episodes", type=int, default=40)
+    of.add_argument("--dataset", help="default: the shipped dataset")
+    of.add_argument("--workers", type=int, default=2)
+    of.add_argument("--out", help="one JSON line per object (default: print only)")
+    of.add_argument("--trace", metavar="EPISODE", help="play only this episode (an id: "
+                    "house_00091/task_5/start_0) and print its PickUps and PutDowns")  # fmt: skip
+    of.set_defaults(func=_object_fates)
 
     rp = sub.add_parser("replay", help="open an episode recording (.rrd) in the rerun viewer")
     rp.add_argument("file")

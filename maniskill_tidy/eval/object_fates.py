@@ -1,26 +1,21 @@
-"""What became of each misplaced object in a team's episodes: never in view, seen but never
-picked up, picked up but not put where it belongs, or tidied.
+"""What became of each misplaced object in a team's episodes (the ground-truth track): never in
+view, seen but never picked up, picked up but not put where it belongs, or tidied.
 
-    python scripts/object_fates.py memory --setting I --split val --episodes 40
-
-Plays ``--episodes`` episodes (evenly spread, as ``eval --episodes N``; seed ``i`` for episode
-``i``) of the team with an observer that has the benchmark's full access (it is an instrument,
-not part of the team): a misplaced object counts as *in view* from the first step at which it
-covers at least ``MIN_PIXELS`` pixels of some agent's segmentation (the detector's stand-in,
-the threshold the agents' own perception uses), whether or not the team then recognised it as
-misplaced. Objects in view and never picked are split by whether a manipulator (who could pick
-them up) ever had them in view, and by what the agents' own detections judged them (agents of
-the heuristic's kind, ``heuristic-*`` and ``memory``; misplaced if any agent ever judged so).
-
-Prints, per place the object was misplaced to (floor, on top, inside a shelf or compartment),
-how many ended in each fate; writes one JSON line per object to ``--out``. Camera teams only:
-the expert reads the env, not its cameras.
+``maniskill-tidy object-fates memory --setting I --split val --episodes 40`` plays the episodes
+(evenly spread, as ``eval --episodes N``; seed ``i`` for episode ``i``) with an observer that has
+the benchmark's full access (an instrument, not part of the team): a misplaced object counts as
+*in view* from the first step at which it covers at least ``MIN_PIXELS`` pixels of some agent's
+segmentation (the detector's stand-in, the threshold the agents' own perception uses), whether
+or not the team then recognised it as misplaced. Objects in view and never picked are split by
+whether a manipulator (who could pick them up) ever had them in view, and by what the agents'
+own detections judged them (agents of the heuristic's kind, ``heuristic-*`` and ``memory``;
+misplaced if any agent ever judged so). Camera teams only: the expert reads the env, not its
+cameras. A pixels run's records hold its own fates (``pixels-losses``).
 """
+
 
 from __future__ import annotations
 
-import argparse
-import json
 from collections import Counter
 from pathlib import Path
 
@@ -37,9 +32,12 @@ class ObjectFates:
     """The observer (``eval/episode.py``): each misplaced object's first step in view, first
     step held, and whether it ends where it belongs."""
 
-    def __init__(self, agents: list | None = None, trace: bool = False) -> None:
-        self.agents = agents if agents is not None else []  # the team's, filled as it makes them
+    def __init__(self, trace: bool = False) -> None:
+        self.agents: list = []  # the team's agents (``executing``)
         self.tracing, self.trace = trace, []  # every operation and its outcome, with --trace
+
+    def executing(self, agents: dict) -> None:  # the instrument watches their beliefs
+        self.agents = list(agents.values())
 
     def start(self, env, team, channel) -> None:
         self.env = env
@@ -57,7 +55,7 @@ class ObjectFates:
     def observed(self, t: int, obs: dict, info: dict) -> None:
         for name, agent_obs in obs.items():
             if "segmentation" not in agent_obs:
-                raise SystemExit("object_fates: the team's observation has no segmentation")
+                raise ValueError("object-fates: the team's observation has no segmentation")
             ids, counts = np.unique(np.asarray(agent_obs["segmentation"]), return_counts=True)
             for seg, n in zip(ids.tolist(), counts.tolist(), strict=True):
                 oid = self.seg.get(seg)
@@ -125,35 +123,15 @@ def _play(job: tuple[int, bool]) -> tuple[list[dict], Counter, list[str]]:
     from maniskill_tidy.eval.episode import play_episode
 
     index, trace = job
-    team, made = _worker["team"], []
-    make_agent = type(team).make_agent
-
-    def keep(self, *args, **kwargs):  # the instrument watches the agents' beliefs
-        made.append(make_agent(self, *args, **kwargs))
-        return made[-1]
-
-    team.make_agent = keep.__get__(team)
-    try:
-        fates = ObjectFates(made, trace)
-        seed = _worker["cfg"].seed + index
-        record = play_episode(_worker["env"], team, index, seed, [fates])
-    finally:
-        del team.make_agent
+    fates = ObjectFates(trace=trace)
+    seed = _worker["cfg"].seed + index
+    record = play_episode(_worker["env"], _worker["team"], index, seed, [fates])
     return fates.rows(record.episode), fates.failures, fates.trace
 
 
-def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("policy", help="a camera team (memory, heuristic-detection, hangrcom, ...)")
-    p.add_argument("--setting", default="I", choices=["I", "II"])
-    p.add_argument("--split", default="val", choices=["train", "val", "test"])
-    p.add_argument("--episodes", type=int, default=40)
-    p.add_argument("--dataset", default="data/tidy120")
-    p.add_argument("--workers", type=int, default=2)
-    p.add_argument("--out", type=Path, help="one JSON line per object (default: print only)")
-    p.add_argument("--trace", metavar="EPISODE", help="play only this episode (an id: "
-                   "house_00091/task_5/start_0) and print its PickUps and PutDowns")  # fmt: skip
-    args = p.parse_args()
+def object_fates(policy: str, setting: str, split: str, episodes: int, dataset: str,
+                 workers: int, trace: str | None = None):  # fmt: skip
+    """Play the episodes; returns (rows, failures, traces, number of episodes)."""
     from tqdm import tqdm
 
     from maniskill_tidy.common.parallel import run_jobs
@@ -161,68 +139,64 @@ def main() -> None:
     from maniskill_tidy.eval.runner import RunConfig, select
     from maniskill_tidy.policies import POLICIES
 
-    if args.policy not in POLICIES or args.policy == "expert":
-        p.error(f"policy {args.policy!r}: expected a camera team, one of "
-                f"{sorted(set(POLICIES) - {'expert'})}")  # fmt: skip
-    if args.episodes <= 0:
-        p.error(f"--episodes {args.episodes}: expected a positive number")
-    if not Path(args.dataset).is_dir():
-        p.error(f"--dataset {args.dataset}: not found; expected a folder made by "
-                "`maniskill-tidy generate`")  # fmt: skip
-    cfg = RunConfig(args.policy, args.setting, args.split, args.dataset)
-    starts = EpisodeSet.for_setting(args.dataset, args.split, args.setting).episodes
-    chosen = select([e.start for e in starts], args.episodes)
-    if args.trace is not None:
+    if policy not in POLICIES or policy == "expert":
+        raise ValueError(f"policy {policy!r}: expected a camera team, one of "
+                         f"{sorted(set(POLICIES) - {'expert'})}")  # fmt: skip
+    if episodes <= 0:
+        raise ValueError(f"--episodes {episodes}: expected a positive number")
+    if dataset is not None and not Path(dataset).is_dir():
+        raise ValueError(f"--dataset {dataset}: not found; expected a folder made by "
+                         "`maniskill-tidy generate`")  # fmt: skip
+    cfg = RunConfig(policy, setting, split, dataset)
+    starts = EpisodeSet.for_setting(dataset, split, setting).episodes
+    chosen = select([e.start for e in starts], episodes)
+    if trace is not None:
         ids = [e.id for e in starts]
-        if args.trace not in ids:
-            p.error(f"--trace {args.trace!r}: not an episode of {args.split}, Setting "
-                    f"{args.setting}; expected an id such as {ids[0]!r}")  # fmt: skip
-        chosen = [ids.index(args.trace)]
+        if trace not in ids:
+            raise ValueError(f"--trace {trace!r}: not an episode of {split}, Setting {setting}; "
+                             f"expected an id such as {ids[0]!r}")  # fmt: skip
+        chosen = [ids.index(trace)]
     rows: list[dict] = []
     failures: Counter = Counter()
     traces: list[str] = []
-    with tqdm(total=len(chosen), desc=args.policy, unit="episode") as bar:
-        jobs = [(i, args.trace is not None) for i in chosen]
-        for _, (played, failed, trace) in run_jobs(jobs, _play, args.workers, init=_init,
+    with tqdm(total=len(chosen), desc=policy, unit="episode") as bar:
+        jobs = [(i, trace is not None) for i in chosen]
+        for _, (played, failed, lines) in run_jobs(jobs, _play, workers, init=_init,
                                                    initargs=(cfg,), ordered=True):  # fmt: skip
             rows.extend(played)
             failures += failed
-            traces += trace
+            traces += lines
             bar.update(1)
-    for line in traces:
-        print(line)
-    if args.out is not None:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        tmp = args.out.with_suffix(".tmp")
-        tmp.write_text("".join(json.dumps(r) + "\n" for r in rows))
-        tmp.replace(args.out)
-    print(f"{args.policy}, Setting {args.setting}, {args.split}: {len(chosen)} episodes, "
-          f"{len(rows)} misplaced objects")  # fmt: skip
-    print(f"{'misplaced to':>14} {'n':>5} " + " ".join(f"{f:>22}" for f in FATES))
+    return rows, failures, traces, len(chosen)
+
+
+def report(policy: str, setting: str, split: str, rows: list[dict], failures: Counter,
+           episodes: int) -> str:  # fmt: skip
+    """The fates per place an object was misplaced to, and why objects in view were missed."""
+    lines = [f"{policy}, Setting {setting}, {split}: {episodes} episodes, "
+             f"{len(rows)} misplaced objects",
+             f"{'misplaced to':>14} {'n':>5} " + " ".join(f"{f:>22}" for f in FATES)]  # fmt: skip
     for where in ("floor", "on top", "inside", "all"):
         mine = [r for r in rows if where in ("all", r["where"])]
         n = Counter(r["fate"] for r in mine)
-        print(f"{where:>14} {len(mine):>5} " + " ".join(
+        lines.append(f"{where:>14} {len(mine):>5} " + " ".join(
             f"{n[f]:>10} ({n[f] / max(len(mine), 1):5.1%})    " for f in FATES))  # fmt: skip
-    print(f"failed actions: {failures['no room'] + failures['other']}, of them PutDown with no "
-          f"room on the surface: {failures['no room']}; agent-steps spent carrying an object: "
-          f"{failures['steps carrying']} of {len(chosen)} episodes")  # fmt: skip
+    lines.append(f"failed actions: {failures['no room'] + failures['other']}, of them PutDown "
+                 f"with no room on the surface: {failures['no room']}; agent-steps spent "
+                 f"carrying an object: {failures['steps carrying']} of {episodes} "
+                 "episodes")  # fmt: skip
     missed = [r for r in rows if r["fate"] == FATES[1]]
     if missed:
-        print(
-            f"in view, never picked ({len(missed)}): first in view at step "
-            f"{np.median([r['seen'] for r in missed]):.0f} (median); "
-            f"{np.mean([r['cross_room'] for r in missed]):.0%} misplaced to another room"
-        )
+        lines.append(f"in view, never picked ({len(missed)}): first in view at step "
+                     f"{np.median([r['seen'] for r in missed]):.0f} (median); "
+                     f"{np.mean([r['cross_room'] for r in missed]):.0%} misplaced to another "
+                     "room")  # fmt: skip
         n = Counter(REASONS[r["seen_by_manipulator"] is not None] for r in missed)
-        print("  " + "; ".join(f"{reason}: {n[reason]}" for reason in REASONS))
+        lines.append("  " + "; ".join(f"{reason}: {n[reason]}" for reason in REASONS))
         n = Counter(r["judged"] for r in missed)
-        print("  " + "; ".join(f"{belief}: {n[belief]}" for belief in BELIEFS))
+        lines.append("  " + "; ".join(f"{belief}: {n[belief]}" for belief in BELIEFS))
         known = [r for r in missed if r["known_to_manipulator"]]
-        print(f"  a manipulator's own detection judged it misplaced: {len(known)}, of which "
-              f"a manipulator gave up on it (no viewpoint to pick it from): "
-              f"{sum(r['given_up'] for r in known)}")  # fmt: skip
-
-
-if __name__ == "__main__":
-    main()
+        lines.append(f"  a manipulator's own detection judged it misplaced: {len(known)}, of "
+                     "which a manipulator gave up on it (no viewpoint to pick it from): "
+                     f"{sum(r['given_up'] for r in known)}")  # fmt: skip
+    return "\n".join(lines)
