@@ -117,3 +117,19 @@ def test_object_fates_plays_a_camera_team_and_refuses_the_expert(tmp_path):
     assert "heuristic-none, Setting I, test: 1 episodes" in p.stdout
     one_line_error(cli("object-fates", "expert"), "expected a camera team")
     one_line_error(cli("object-fates", "memory", "--episodes", "0"), "expected a positive")
+
+
+def test_unsolved_objects_replays_a_runs_failed_episodes(tmp_path):
+    from tests.test_cli_errors import cli, one_line_error
+
+    p = cli("eval", "--policy", "random", "--setting", "I", "--episodes", "1", "--out",
+            str(tmp_path))  # fmt: skip
+    assert p.returncode == 0, p.stderr[-2000:]
+    run = tmp_path / "eval/results/setting_I/random"
+    p = cli("unsolved-objects", str(run))
+    assert p.returncode == 0, p.stderr[-2000:]
+    lines = p.stdout.splitlines()
+    assert lines[0] == "1 of 1 episodes failed (random, HeteroTidy-v1)"
+    rows = [line.split(" | ") for line in lines[2:]]
+    assert rows and all(len(r) == 5 and r[3] in ("True", "False") for r in rows)
+    one_line_error(cli("unsolved-objects", str(tmp_path)), "no run.json")

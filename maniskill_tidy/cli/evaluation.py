@@ -136,6 +136,14 @@ def _object_fates(args: argparse.Namespace) -> int:
     return 0
 
 
+def _unsolved_objects(args: argparse.Namespace) -> int:
+    from maniskill_tidy.eval.unsolved_objects import unsolved_objects
+
+    for line in unsolved_objects(Path(args.run), args.dataset):
+        print(line)
+    return 0
+
+
 def _replay(args: argparse.Namespace) -> int:
     import shutil
     import subprocess
@@ -255,6 +263,14 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     of.add_argument("--trace", metavar="EPISODE", help="play only this episode (an id: "
                     "house_00091/task_5/start_0) and print its PickUps and PutDowns")  # fmt: skip
     of.set_defaults(func=_object_fates)
+
+    uo = sub.add_parser(
+        "unsolved-objects",
+        help="why a run's failed episodes failed, object by object (replays them)",
+    )
+    uo.add_argument("run", help="an eval run's folder (eval/results/setting_S/NAME)")
+    uo.add_argument("--dataset", help="the dataset it ran on, if moved (default: run.json's)")
+    uo.set_defaults(func=_unsolved_objects)
 
     rp = sub.add_parser("replay", help="open an episode recording (.rrd) in the rerun viewer")
     rp.add_argument("file")

@@ -3,14 +3,13 @@ unreasonable place, whether any agent ever picked it up, and the most pixels any
 camera had of it in one frame (PickUp needs ``MIN_PIXELS``). It replays the run's failed
 episodes with the run's own team, env version and seeds.
 
-    .venv/bin/python scripts/unsolved_objects.py eval/results/setting_I/expert-v2
+    maniskill-tidy unsolved-objects eval/results/setting_I/expert-v2
 
 An instrument, like the recorder: it reads the simulator, the teams do not.
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 from pathlib import Path
 
@@ -18,8 +17,7 @@ import numpy as np
 
 from maniskill_tidy.envs.actions import MIN_PIXELS
 from maniskill_tidy.eval.episode import play_episode
-from maniskill_tidy.eval.runner import RunConfig, make_env
-from maniskill_tidy.policies import make_team
+from maniskill_tidy.eval.runner import RunConfig, make_env, make_run_team
 
 
 class ManipulatorPixels:
@@ -42,35 +40,37 @@ class ManipulatorPixels:
                     self.most[o] = max(self.most[o], int(n))
 
 
-def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("run", type=Path, help="an eval run folder (eval/results/setting_S/NAME)")
-    p.add_argument("--dataset", help="the dataset it ran on, if moved (default: run.json's)")
-    args = p.parse_args()
-    run = json.loads((args.run / "run.json").read_text())
-    records = [json.loads(line) for line in (args.run / "episodes.jsonl").read_text().splitlines()]
+def unsolved_objects(run_dir: Path, dataset: str | None = None) -> list[str]:
+    """The report's lines: per failed episode of the run, each object left unreasonable."""
+    for name in ("run.json", "episodes.jsonl"):
+        if not (run_dir / name).is_file():
+            raise ValueError(f"{run_dir}: no {name}; expected an eval run's folder "
+                             "(eval/results/setting_S/NAME)")  # fmt: skip
+    run = json.loads((run_dir / "run.json").read_text())
+    records = [json.loads(line) for line in (run_dir / "episodes.jsonl").read_text().splitlines()]
     failed = [r for r in records if not r["success"]]
     cfg = RunConfig(
-        run["policy"], run["setting"], run["split"], args.dataset or run["dataset"],
+        run["policy"], run["setting"], run["split"], dataset or run["dataset"],
         run["episodes"], run["seed"], run["task_type"], run.get("env", "HeteroTidy-v1"),
+        segmentation=run.get("segmentation", "ground-truth"),
     )  # fmt: skip
     env = make_env(cfg, True)  # every camera: the pixel counts need the manipulators' images
     u = env.unwrapped
     index = {u.episodes.get(i).id: i for i in range(len(u.episodes))}
-    print(f"{len(failed)} of {len(records)} episodes failed ({cfg.policy}, {cfg.env})")
-    print("episode | object | type | picked up | most manipulator pixels in a frame")
-    for r in failed:
-        i = index[r["episode"]]
-        pixels = ManipulatorPixels()
-        play_episode(env, make_team(cfg.policy), i, cfg.seed + i, [pixels])
-        outcome = u.evaluate()
-        picked = set(outcome["picked"])
-        for o in sorted(set(u.misplaced) - set(outcome["reasonable"])):
-            kind = u.manipulation.types[o]
-            note = "" if pixels.most[o] >= MIN_PIXELS else f" (< {MIN_PIXELS})"
-            print(f"{r['episode']} | {o} | {kind} | {o in picked} | {pixels.most[o]}{note}")
-    env.close()
-
-
-if __name__ == "__main__":
-    main()
+    lines = [f"{len(failed)} of {len(records)} episodes failed ({cfg.policy}, {cfg.env})",
+             "episode | object | type | picked up | most manipulator pixels in a frame"]
+    try:
+        for r in failed:
+            i = index[r["episode"]]
+            pixels = ManipulatorPixels()
+            play_episode(env, make_run_team(cfg), i, cfg.seed + i, [pixels])
+            outcome = u.evaluate()
+            picked = set(outcome["picked"])
+            for o in sorted(set(u.misplaced) - set(outcome["reasonable"])):
+                kind = u.manipulation.types[o]
+                note = "" if pixels.most[o] >= MIN_PIXELS else f" (< {MIN_PIXELS})"
+                lines.append(f"{r['episode']} | {o} | {kind} | {o in picked} | "
+                             f"{pixels.most[o]}{note}")  # fmt: skip
+    finally:
+        env.close()
+    return lines
