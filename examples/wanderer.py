@@ -3,7 +3,7 @@ blocked. Play it from this folder with
 
     maniskill-tidy eval --policy wanderer:WandererTeam --setting I --episodes 4 --workers 2
 
-or through a config that names it (``wanderer.yaml``: ``team: wanderer:WandererTeam``).
+or through a config that names it (``wanderer.yaml``: ``team_class: wanderer:WandererTeam``).
 """
 
 from __future__ import annotations

@@ -41,7 +41,7 @@ def test_a_config_names_its_team_and_its_options(folder, monkeypatch):
     team = make_team("wanderer.yaml")
     assert team.name == "wanderer-right" and team.turn == Action.RotateRight
     assert make_team("wanderer:WandererTeam").turn == Action.RotateLeft
-    (folder / "bad.yaml").write_text("team: wanderer:WandererTeam\noptions: {speed: 2}\n")
+    (folder / "bad.yaml").write_text("team_class: wanderer:WandererTeam\noptions: {speed: 2}\n")
     with pytest.raises(ValueError, match="unexpected keyword argument 'speed'"):
         make_team("bad.yaml")
 

@@ -85,7 +85,7 @@ def installed_teams() -> dict[str, str]:
 def team_class(policy: str) -> type[AnyTeam]:
     """A registered name, ``package.module:TeamClass``, a team of an installed package (entry
     point ``maniskill_tidy.teams``), or the path of an agent config (``agents/*.yaml``; one
-    with ``team: package.module:TeamClass`` names its team that way, ``options:`` its
+    with ``team_class: package.module:TeamClass`` names its team that way, ``options:`` its
     arguments)."""
     if policy in POLICIES:
         return POLICIES[policy]
@@ -97,11 +97,11 @@ def team_class(policy: str) -> type[AnyTeam]:
         from maniskill_tidy.policies.learned import resolve
 
         config = read_config(resolve(policy))
-        if "team" in config:
+        if "team_class" in config:  # (``team:`` is a learned config's team of capabilities)
             options = config.get("options") or {}
             if not isinstance(options, dict):
                 raise ValueError(f"{policy}: options: expected a mapping of arguments")
-            return plugin_class(config["team"], options, config.get("name"))
+            return plugin_class(config["team_class"], options, config.get("name"))
         trainer = trainer_of(resolve(policy))
         if trainer == "qmix":
             cfg = QmixConfig.load(resolve(policy))
