@@ -207,7 +207,7 @@ def report(
     pixels = [r for r in rows if "ms_per_frame" in r]
     if pixels:
         lines.append(f"{'pixels track':>20} {'env':>13} {'frames':>8} ms per agent frame: "
-                     "segmenter (ONNX Runtime, 1 thread) / instances / labels, tracks")  # fmt: skip
+                     "segmenter (ONNX Runtime, batched) / instances / labels, tracks")  # fmt: skip
     for r in pixels:
         ms = r["ms_per_frame"]
         lines.append(f"{r['team']:>20} {r['env_id']:>13} {r['frames']:>8} {'':>20}"
