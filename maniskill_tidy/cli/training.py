@@ -225,7 +225,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     )
     ts.add_argument("--data", required=True, help="segmenter-data's folder (train/, val/, test/)")
     ts.add_argument("--out", required=True, help="e.g. agents/segmenter-v2")
-    ts.add_argument("--epochs", type=int, default=40)
+    ts.add_argument("--epochs", type=int, default=16)
     ts.add_argument("--batch", type=int, default=16)
     ts.add_argument("--crop", type=int, default=128, help="training crops, px (frames are 224)")
     ts.add_argument("--widths", help="channels of the five levels (12,16,32,48,64)")
