@@ -151,8 +151,8 @@ def test_the_bench_times_the_teams_and_looks_asked_for(monkeypatch, capsys):
 
     ran = []
 
-    def row(team, dataset=None, env_id="HeteroTidy-v1"):
-        ran.append((team, env_id))
+    def row(team, dataset=None, env_id="HeteroTidy-v1", segmentation="ground-truth"):
+        ran.append((team, env_id, segmentation))
         return {"team": team, "env_id": env_id, "episodes": 3, "team_s": 2.0, "env_s": 1.0,
                 "ratio": 2.0}  # fmt: skip
 
@@ -166,9 +166,15 @@ def test_the_bench_times_the_teams_and_looks_asked_for(monkeypatch, capsys):
     argv = ["--only", "teams", "--teams", "random,heuristic-none", "--looks", "v2",
             "--skip", "workers", "machine", "demos"]  # fmt: skip
     assert bench.main(argv) == 0
-    assert ran == [("random", "HeteroTidy-v2"), ("heuristic-none", "HeteroTidy-v2")]
+    # heuristic-none also from pixels: v2's segmenter ships (agents/segmenter-v2)
+    assert ran == [("random", "HeteroTidy-v2", "ground-truth"),
+                   ("heuristic-none", "HeteroTidy-v2", "ground-truth"),
+                   ("heuristic-none", "HeteroTidy-v2", "learned")]  # fmt: skip
     out = capsys.readouterr().out
     assert "heuristic-none" in out and "2 workers" not in out and "HeteroTidy-v1" not in out
+    ran.clear()
+    assert bench.main([*argv, "pixels"]) == 0
+    assert [r[2] for r in ran] == ["ground-truth", "ground-truth"]
 
 
 @pytest.mark.parametrize(
