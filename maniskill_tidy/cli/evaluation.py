@@ -274,8 +274,14 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
 
     rp = sub.add_parser("replay", help="open an episode recording (.rrd) in the rerun viewer")
     rp.add_argument("file")
-    rp.add_argument("--web", action="store_true",
-                    help="serve the web viewer instead (the default where there is no display)")
-    rp.add_argument("--bind", default="127.0.0.1",
-                    help="the web viewer's address (default: this machine only; 0.0.0.0 to share)")
+    rp.add_argument(
+        "--web",
+        action="store_true",
+        help="serve the web viewer instead (the default where there is no display)",
+    )
+    rp.add_argument(
+        "--bind",
+        default="127.0.0.1",
+        help="the web viewer's address (default: this machine only; 0.0.0.0 to share)",
+    )
     rp.set_defaults(func=_replay)

@@ -72,8 +72,10 @@ def _segmenter_data(args: argparse.Namespace) -> int:
         cfg = SegDataConfig(args.dataset, split, args.env, args.every, args.max_steps,
                             args.houses)  # fmt: skip
         m = build_segmenter_data(cfg, Path(args.out) / split, workers=args.workers)
-        print(f"{split}: {m['frames']} frames of {m['houses_done']} houses in "
-              f"{Path(args.out) / split} (data hash {m['data_hash'][:12]}, {m['seconds']:.0f} s)")
+        print(
+            f"{split}: {m['frames']} frames of {m['houses_done']} houses in "
+            f"{Path(args.out) / split} (data hash {m['data_hash'][:12]}, {m['seconds']:.0f} s)"
+        )
     return 0
 
 

@@ -151,8 +151,7 @@ def parse_action(
         return action, None
     if isinstance(target, tuple):
         if len(target) != 2 or not all(
-            isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_))
-            for v in target
+            isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_)) for v in target
         ):
             raise TypeError(f"{agent}: a pixel target is (x, y), two integers; got {target!r}")
         return action, (int(target[0]), int(target[1]))

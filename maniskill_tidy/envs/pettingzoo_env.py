@@ -23,9 +23,7 @@ from maniskill_tidy.envs.registration import ENV_ID, VERSIONS
 class HeteroTidyParallelEnv(ParallelEnv):
     metadata = {"name": "hetero_tidy_v1", "render_modes": ["rgb_array"], "is_parallelizable": True}
 
-    def __init__(
-        self, render_mode: str | None = None, env_id: str = ENV_ID, **kwargs: Any
-    ) -> None:
+    def __init__(self, render_mode: str | None = None, env_id: str = ENV_ID, **kwargs: Any) -> None:
         if env_id not in VERSIONS:
             raise ValueError(f"env_id {env_id!r}: expected one of {sorted(VERSIONS)}")
         kwargs.setdefault("visuals", VERSIONS[env_id])

@@ -13,7 +13,6 @@ misplaced if any agent ever judged so). Camera teams only: the expert reads the 
 cameras. A pixels run's records hold its own fates (``pixels-losses``).
 """
 
-
 from __future__ import annotations
 
 from collections import Counter

@@ -57,8 +57,10 @@ def unsolved_objects(run_dir: Path, dataset: str | None = None) -> list[str]:
     env = make_env(cfg, True)  # every camera: the pixel counts need the manipulators' images
     u = env.unwrapped
     index = {u.episodes.get(i).id: i for i in range(len(u.episodes))}
-    lines = [f"{len(failed)} of {len(records)} episodes failed ({cfg.policy}, {cfg.env})",
-             "episode | object | type | picked up | most manipulator pixels in a frame"]
+    lines = [
+        f"{len(failed)} of {len(records)} episodes failed ({cfg.policy}, {cfg.env})",
+        "episode | object | type | picked up | most manipulator pixels in a frame",
+    ]
     try:
         for r in failed:
             i = index[r["episode"]]
