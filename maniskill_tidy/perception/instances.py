@@ -93,31 +93,3 @@ def split_instances(
             score = float(probabilities[box][local].mean()) if probabilities is not None else 1.0
             out.append(Mask2D(int(c), m, score, box))
     return out
-
-
-def object_instances(
-    labels: np.ndarray,
-    depth: np.ndarray,
-    classes: list[int] | np.ndarray,
-    probabilities: np.ndarray | None = None,
-    min_pixels: int = MIN_PIXELS,
-) -> list[Mask2D]:
-    """Instances of any of ``classes`` taken together, each given the class most of its pixels
-    have (weighted by probability): a segmenter unsure between two types splits one small
-    object into pieces of each, and a piece is a miss and a false positive in one. Components
-    are split at depth jumps as in :func:`split_instances`; the score is the mean probability
-    over the mask times the share of the winning class."""
-    present = np.zeros(256, dtype=bool)
-    present[np.asarray(classes, dtype=np.int64)] = True
-    group = present[labels]
-    if not group.any():
-        return []
-    merged = np.where(group, np.uint8(1), np.uint8(0))
-    p = probabilities if probabilities is not None else np.ones(labels.shape, np.float32)
-    out = []
-    for m in split_instances(merged, depth, [1], None, min_pixels):
-        votes = np.bincount(labels[m.mask], weights=p[m.mask], minlength=256)
-        c = int(np.argmax(votes))
-        share = float(votes[c] / max(votes.sum(), 1e-9))
-        out.append(Mask2D(c, m.mask, float(p[m.mask].mean()) * share, m.box))
-    return out

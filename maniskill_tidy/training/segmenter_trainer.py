@@ -95,14 +95,15 @@ def truth_masks(cls: np.ndarray, instance: np.ndarray, pickupable: list[int]) ->
 
 
 def _pairs(model: Segmenter, frames: dict) -> tuple[list, list[int], np.ndarray]:
-    """Per frame (truth, predicted instances) over the pickupable types, as agents make them,
-    the pickupable classes and the predicted labels."""
+    """Per frame (truth, predicted instances) over the pickupable types, as agents make them
+    (masks under ``MIN_PIXELS`` left out: agents cannot act on them), the pickupable classes and
+    the predicted labels."""
     classes = seg_classes()
     pickupable = [i for i in range(len(classes.names)) if classes.is_pickupable(i)]
     depth = frames["depth_mm"].astype(np.float32) / 1000.0
     labels, probs = predict(model, frames["rgb"], depth)
     pairs = [(truth_masks(frames["cls"][k], frames["instance"][k], pickupable),
-              split_instances(labels[k], depth[k], pickupable, probs[k]))
+              split_instances(labels[k], depth[k], pickupable, probs[k], MIN_PIXELS))
              for k in range(len(labels))]  # fmt: skip
     return pairs, pickupable, labels
 

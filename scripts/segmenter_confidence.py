@@ -1,0 +1,120 @@
+"""How a segmenter's mask confidence ranks masks, and what it costs (the pixels track's label
+head, models/segmenter.py: LabelHead). On val frames: mask AP50 over the pickupable types with
+each confidence (the softmax's maximum at half resolution, the same on every other cell, the
+sigmoid of the two best logits' margin) and with masks under 8 or 20 pixels kept; then each
+head's time per frame in ONNX Runtime, 2 threads, batches of 3 (run it on an idle machine).
+
+    .venv/bin/python scripts/segmenter_confidence.py agents/segmenter-v2 \
+        --data data/segmenter/HeteroTidy-v2/val --frames 400
+"""
+
+from __future__ import annotations
+
+import argparse
+import io
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import nn
+
+from maniskill_tidy.envs.actions import MIN_PIXELS
+from maniskill_tidy.eval.mask_ap import mask_ap
+from maniskill_tidy.models import checkpoints
+from maniskill_tidy.models.segmenter import upsample
+from maniskill_tidy.perception.instances import split_instances
+from maniskill_tidy.perception.seg_classes import seg_classes
+from maniskill_tidy.training.segmenter_trainer import load_split, truth_masks
+
+
+def confidences(logits: torch.Tensor) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
+    best, label = logits.topk(2, dim=1)
+    coarse = logits[:, :, ::2, ::2]
+    return label[:, 0].to(torch.uint8), {
+        "softmax": 1 / torch.exp(logits - best[:, :1]).sum(1),
+        "softmax, every other cell": 1 / torch.exp(coarse - coarse.amax(1, keepdim=True)).sum(1),
+        "margin": torch.sigmoid(best[:, 0] - best[:, 1]),
+    }
+
+
+class Head(nn.Module):
+    def __init__(self, model: nn.Module, kind: str) -> None:
+        super().__init__()
+        self.model, self.kind = model, kind
+
+    def forward(self, rgb, depth):
+        label, conf = confidences(self.model(rgb, depth))
+        return label, conf[self.kind]
+
+
+def ms_per_frame(model: nn.Module, kind: str, repeats: int = 6) -> float:
+    import onnxruntime as ort
+
+    buf = io.BytesIO()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        torch.onnx.export(
+            Head(model, kind),
+            (torch.zeros(1, 3, 64, 64), torch.zeros(1, 1, 64, 64)),
+            buf,
+            dynamo=False,
+            opset_version=17,
+            input_names=["rgb", "depth"],
+            dynamic_axes={n: {0: "b", 2: "h", 3: "w"} for n in ("rgb", "depth")},
+        )
+    options = ort.SessionOptions()
+    options.intra_op_num_threads, options.inter_op_num_threads = 2, 1
+    session = ort.InferenceSession(buf.getvalue(), options, providers=["CPUExecutionProvider"])
+    rng = np.random.default_rng(0)
+    feed = {
+        "rgb": rng.uniform(0, 255, (3, 3, 224, 224)).astype(np.float32),
+        "depth": rng.uniform(0.3, 4, (3, 1, 224, 224)).astype(np.float32),
+    }
+    for _ in range(5):
+        session.run(None, feed)
+    times = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        for _ in range(10):
+            session.run(None, feed)
+        times.append((time.perf_counter() - t) / 30 * 1000)
+    return float(np.median(times))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("weights")
+    ap.add_argument("--data", default="data/segmenter/HeteroTidy-v2/val")
+    ap.add_argument("--frames", type=int, default=400)
+    args = ap.parse_args()
+    model = checkpoints.load_segmenter(Path(args.weights)).eval()
+    frames = load_split(Path(args.data), args.frames)
+    classes = seg_classes()
+    pick = [i for i in range(len(classes.names)) if classes.is_pickupable(i)]
+    depth = frames["depth_mm"].astype(np.float32) / 1000
+    labels, conf = [], {}
+    with torch.inference_mode():
+        for s in range(0, len(depth), 16):
+            rgb = torch.from_numpy(frames["rgb"][s : s + 16]).permute(0, 3, 1, 2).float()
+            label, c = confidences(model(rgb, torch.from_numpy(depth[s : s + 16])[:, None]))
+            labels.append(label.numpy())
+            for k, v in c.items():
+                conf.setdefault(k, []).append(v.numpy())
+    truth = [truth_masks(frames["cls"][i], frames["instance"][i], pick) for i in range(len(depth))]
+    print("confidence | masks kept from | val mask AP50 | AP | ms per frame")
+    for kind, parts in conf.items():
+        lab, prob = upsample(np.concatenate(labels), np.concatenate(parts), depth.shape[1:])
+        cost = ms_per_frame(model, kind)
+        for keep in (8, MIN_PIXELS):
+            pairs = [
+                (truth[i], split_instances(lab[i], depth[i], pick, prob[i], keep))
+                for i in range(len(depth))
+            ]
+            r = mask_ap(pairs, pick, depth.shape[1:], ignore_below=MIN_PIXELS)
+            print(f"{kind} | {keep} px | {r['AP50']:.3f} | {r['AP']:.3f} | {cost:.2f}")
+
+
+if __name__ == "__main__":
+    main()
