@@ -26,6 +26,13 @@ for want in ("LICENSE", "ATTRIBUTION.md"):
 meta = zipfile.ZipFile(sys.argv[1]).read(next(n for n in names if n.endswith(".dist-info/METADATA")))
 assert b"License-Expression: Apache-2.0 AND CC-BY-3.0" in meta, "no licence expression"
 print("[wheel-check] LICENSE and ATTRIBUTION.md are in the wheel's .dist-info/licenses/")
+# the shipped learned teams travel as package data; experiments and training state stay out
+for want in ("memory.yaml", "memory/setting_I/model.pt", "hangrcom/setting_II/model.pt",
+             "perception/knowledge/model.pt", "segmenter-v2/model.pt"):
+    assert f"maniskill_tidy/agents/{want}" in names, f"the wheel has no agents/{want}"
+stray = [n for n in names if "/agents/experiments/" in n or n.endswith("checkpoint.pt")]
+assert not stray, f"the wheel carries {stray[:3]}"
+print("[wheel-check] the shipped agents' configs and weights are in the wheel, experiments not")
 PY
 python3 -m venv "$OUT/venv"
 echo "[wheel-check] installing $(basename "$OUT"/dist/*.whl) into a fresh venv"
@@ -53,8 +60,11 @@ PY
 venv/bin/maniskill-tidy eval --policy expert --setting I --episodes 1 --out run
 # an installed package has no checkout to name: the run records the package's version
 grep -q '"maniskill-tidy 0.1.0"' run/eval/results/setting_I/expert/run.json
+# a learned team from the weights the wheel ships (no agents/ here)
+[ ! -e agents ] && venv/bin/maniskill-tidy eval --policy memory --setting I --episodes 1 --out run
+grep -q '"episodes": 1' run/eval/results/setting_I/memory/summary.json
 # a team written in a folder of its own (docs/teams.md) plays by its import path, two workers
 (cd myteam && ../venv/bin/maniskill-tidy eval --policy wanderer:WandererTeam --setting I \
   --episodes 2 --workers 2 --out run >/dev/null)
 grep -q '"episodes": 2' myteam/run/eval/results/setting_I/wanderer/summary.json
-echo "[wheel-check] ok: the wheel's env, one eval episode and a user's own team run outside the source tree"
+echo "[wheel-check] ok: the wheel's env, one expert and one memory episode and a user's own team run outside the source tree"

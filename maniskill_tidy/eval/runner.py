@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from maniskill_tidy.common.agent_files import resolve
 from maniskill_tidy.common.files import write_atomic
 from maniskill_tidy.common.parallel import auto_workers, run_jobs
 from maniskill_tidy.common.provenance import code_version
@@ -61,8 +62,6 @@ class RunConfig:
 
     def segmenter(self) -> str:
         """The folder of the segmenter a pixels run uses."""
-        from maniskill_tidy.policies.learned import resolve
-
         if self.segmentation == "learned":
             return str(resolve(f"agents/segmenter-{self.env.rsplit('-', 1)[1]}"))
         return str(resolve(self.segmentation))
@@ -279,8 +278,10 @@ def evaluate(
         from maniskill_tidy.models.checkpoints import verify, weights_sha256
 
         if team_cls.privileged or not team_cls.needs_images:
-            raise ValueError(f"--segmentation {cfg.segmentation}: {cfg.policy} does not look "
-                             "through cameras; the pixels track is for camera-only teams")
+            raise ValueError(
+                f"--segmentation {cfg.segmentation}: {cfg.policy} does not look "
+                "through cameras; the pixels track is for camera-only teams"
+            )
         verify(cfg.segmenter(), "make train-segmenter")
         segmentation = f"learned:{weights_sha256(cfg.segmenter())}"
     # As the env does: the smallest setting that fits the team gives the starts (for SA, one

@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import torch
 
+from maniskill_tidy.common.agent_files import WHERE
 from maniskill_tidy.common.files import file_sha256, write_atomic
 from maniskill_tidy.knowledge import load_catalog
 from maniskill_tidy.knowledge.word_vectors import load_word_vectors
@@ -86,7 +87,7 @@ def verify(folder: Path, train_hint: str) -> None:
     """Refuse a missing, damaged or substituted ``model.pt`` in one line, before any work."""
     path = Path(folder) / WEIGHTS
     if not path.is_file():
-        raise CheckpointError(f"{path} not found; train it with `{train_hint}`")
+        raise CheckpointError(f"{path} not found ({WHERE}); train it with `{train_hint}`")
     card = Path(folder) / CARD
     expected = json.loads(card.read_text()).get("weights_sha256") if card.is_file() else None
     if expected is None:  # no card to compare with: at least torch must read it

@@ -11,6 +11,7 @@ import sys
 from importlib.metadata import entry_points
 from pathlib import Path
 
+from maniskill_tidy.common.agent_files import resolve
 from maniskill_tidy.policies.agent_config import QmixConfig, read_config, trainer_of
 from maniskill_tidy.policies.base import AnyTeam, PrivilegedTeam, Team
 from maniskill_tidy.policies.expert import ExpertTeam
@@ -94,8 +95,6 @@ def team_class(policy: str) -> type[AnyTeam]:
     if (installed := installed_teams()).get(policy):
         return plugin_class(installed[policy])
     if str(policy).endswith((".yaml", ".yml")):
-        from maniskill_tidy.policies.learned import resolve
-
         config = read_config(resolve(policy))
         if "team_class" in config:  # (``team:`` is a learned config's team of capabilities)
             options = config.get("options") or {}

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import yaml
 
+from maniskill_tidy.common.agent_files import WHERE
 from maniskill_tidy.knowledge import ROOM_TYPES, load_catalog
 from maniskill_tidy.models.communication import SCHEMES
 from maniskill_tidy.models.decision import DecisionConfig
@@ -147,7 +148,8 @@ def read_config(path: Path, seen: tuple[Path, ...] = ()) -> dict:
     sections (model, train, act, ...) merged key by key, so that a variant states only what it
     changes."""
     if not path.is_file():
-        raise FileNotFoundError(f"{path}: no such agent config (a YAML file under agents/)")
+        raise FileNotFoundError(f"{path}: no such agent config (a YAML file under agents/; "
+                                f"{WHERE})")  # fmt: skip
     try:
         raw = yaml.safe_load(path.read_text()) or {}
     except yaml.YAMLError as e:

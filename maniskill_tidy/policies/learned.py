@@ -23,6 +23,7 @@ from typing import ClassVar
 import numpy as np
 import torch
 
+from maniskill_tidy.common.agent_files import resolve
 from maniskill_tidy.envs.actions import REACH, Action, Targeted
 from maniskill_tidy.envs.robots import robot_kind
 from maniskill_tidy.knowledge import ROOM_TYPES, load_catalog
@@ -59,15 +60,8 @@ from maniskill_tidy.policies.viewpoints import viewpoints
 from maniskill_tidy.policies.walker import Leg, NoViewpoint, Walker
 from maniskill_tidy.tasks.teams import SETTINGS, setting_of
 
-REPO = Path(__file__).resolve().parents[2]
 COMMIT_STEPS = 4  # env steps a sub-goal is pursued before a new prediction replaces it
 DEFAULT_CONFIG = Path("agents/hangrcom.yaml")
-
-
-def resolve(path: str | Path) -> Path:
-    """A path as given (absolute, or relative to the working directory), else under the repo."""
-    path = Path(path)
-    return path if path.is_absolute() or path.exists() else REPO / path
 
 
 @dataclass
@@ -384,7 +378,6 @@ class LearnedTeam(Team):
     config_file: ClassVar[Path] = DEFAULT_CONFIG
 
     def __init__(self) -> None:
-
         self.config = AgentConfig.load(resolve(self.config_file))
         self._loaded: dict = {}
 
@@ -405,7 +398,6 @@ class LearnedTeam(Team):
     @classmethod
     def model_folder(cls, team) -> Path:
         """Where the decision model that plays this team of capabilities is saved."""
-
         out = AgentConfig.load(resolve(cls.config_file)).out
         return resolve(out) / f"setting_{cls.trained_setting(team)}"
 
@@ -418,7 +410,8 @@ class LearnedTeam(Team):
         # an oracle acts with another config's model (SA(Oracle): agents/sa.yaml's)
         config = f"{cfg.out}.yaml" if cls.oracle else cls.config_file
         try:
-            verify(cls.model_folder(team), f"maniskill-tidy train {config} --setting {setting}")
+            verify(cls.model_folder(team), f"maniskill-tidy train {config} --setting {setting}"
+                   "`, or every variant in both settings with `make train-all")  # fmt: skip
             verify(resolve(cfg.perception), "maniskill-tidy train perception")
         except CheckpointError as err:
             return str(err)
@@ -429,7 +422,6 @@ class LearnedTeam(Team):
         """A fingerprint of the weights this team plays with (decision and perception): an eval
         run resumed after a retraining that changed them is refused rather than mixing two
         models."""
-
         cfg = AgentConfig.load(resolve(cls.config_file))
         return weights_digest(cls.model_folder(team), resolve(cfg.perception))
 

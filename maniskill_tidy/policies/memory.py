@@ -28,6 +28,7 @@ from typing import ClassVar
 import numpy as np
 import torch
 
+from maniskill_tidy.common.agent_files import resolve
 from maniskill_tidy.models.checkpoints import (
     CheckpointError,
     load_memory,
@@ -131,7 +132,6 @@ class MemoryTeam(HeuristicTeam):
         its ``n``-th decision and the best everywhere else (a fork of
         ``training/memory_forks.py``); ``keep_decisions``: keep every best choice with its
         candidates, as ``(step, rows, slot)``."""
-        from maniskill_tidy.policies.learned import resolve
 
         self.config = MemoryConfig.load(resolve(self.config_file))
         self.recording = recording
@@ -152,8 +152,6 @@ class MemoryTeam(HeuristicTeam):
 
     @classmethod
     def model_folder(cls, team) -> Path:
-        from maniskill_tidy.policies.learned import resolve
-
         cfg = MemoryConfig.load(resolve(cls.config_file))
         return resolve(cfg.out) / f"setting_{cls.trained_setting(team)}"
 
@@ -164,7 +162,6 @@ class MemoryTeam(HeuristicTeam):
             saved = read(cls.model_folder(team), hint)
         except CheckpointError as err:
             return str(err)
-        from maniskill_tidy.policies.learned import resolve
 
         explore = MemoryConfig.load(resolve(cls.config_file)).explore
         why = _other_candidates(saved, explore)
@@ -211,7 +208,6 @@ def memory_team_class(config: str | Path) -> type[MemoryTeam]:
     """A team class named after an object-memory config's ``name``; it sends its teacher's
     messages, or memory entries over HanGrCom links when the config has ``links``."""
     from maniskill_tidy.policies import POLICIES
-    from maniskill_tidy.policies.learned import resolve
 
     cfg = MemoryConfig.load(resolve(config))
     attrs = {"name": cfg.name, "config_file": resolve(config)}

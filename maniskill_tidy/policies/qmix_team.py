@@ -18,6 +18,7 @@ from typing import ClassVar
 import numpy as np
 import torch
 
+from maniskill_tidy.common.agent_files import resolve
 from maniskill_tidy.envs.actions import Action, Targeted
 from maniskill_tidy.models.checkpoints import (
     CheckpointError,
@@ -118,8 +119,6 @@ class QmixTeam(Team):
 
     @classmethod
     def missing_model(cls, team: tuple) -> str | None:
-        from maniskill_tidy.policies.learned import resolve
-
         setting = cls.trained_setting(team)
         try:
             verify(resolve(cls.folder) / f"setting_{setting}",
@@ -129,8 +128,6 @@ class QmixTeam(Team):
         return None
 
     def models(self, capabilities: list) -> tuple:
-        from maniskill_tidy.policies.learned import resolve
-
         if self.model is not None:
             return self.model, self._perception
         setting = self.trained_setting(capabilities)
