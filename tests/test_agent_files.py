@@ -47,7 +47,8 @@ def test_only_agents_paths_are_searched(monkeypatch, tmp_path):
 
 def test_missing_weights_say_where_they_were_looked_for(tmp_path):
     config = tmp_path / "mine.yaml"
-    text = (REPO / "agents/memory.yaml").read_text().replace("out: agents/memory", "out: agents/mine")
+    text = (REPO / "agents/memory.yaml").read_text()
+    text = text.replace("out: agents/memory", "out: agents/mine")
     config.write_text(text.replace("name: memory", "name: mine"))
     r = subprocess.run([sys.executable, "-m", "maniskill_tidy.cli", "eval", "--policy", str(config),
                         "--episodes", "1", "--out", str(tmp_path / "run")],

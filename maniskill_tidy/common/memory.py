@@ -13,7 +13,7 @@ def collector_paused() -> Iterator[None]:
     hundred thousand objects, and the collections those allocations trigger walk everything the
     process holds (torch, SAPIEN, ManiSkill): the 120-house dataset's train split took 0.43-0.47 s
     to load beside those libraries, 0.23-0.30 s with the collector paused
-    (``scripts/load_probe.py``). What is made is kept (no garbage
+    (``docs/research/probes/load_probe.py``). What is made is kept (no garbage
     cycles to miss), and the collector runs as usual afterwards."""
     was_enabled = gc.isenabled()
     gc.disable()

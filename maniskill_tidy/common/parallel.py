@@ -73,8 +73,8 @@ def core_shares(workers: int) -> list[frozenset[int]] | None:
     """With ``TIDY_PIN_WORKERS=1``, each of ``workers`` local processes' own cores: disjoint
     slices of this process's cores, as even as they divide (None otherwise, or where there are
     fewer cores than workers). Off by default: on 2 cores it gained nothing beyond the spread
-    between runs (``scripts/pinning_ab.py``; docs/scaling.md, Two workers), and a pinned worker
-    cannot use the core its neighbour leaves idle."""
+    between runs (``docs/research/probes/pinning_ab.py``; docs/scaling.md, Two workers), and a
+    pinned worker cannot use the core its neighbour leaves idle."""
     if os.environ.get("TIDY_PIN_WORKERS") != "1" or not hasattr(os, "sched_setaffinity"):
         return None
     cores = sorted(os.sched_getaffinity(0))

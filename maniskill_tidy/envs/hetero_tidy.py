@@ -260,7 +260,7 @@ class HeteroTidyEnv(BaseEnv):
         self._segmentation_cameras = {}  # made on demand, on this scene's robots
         if self.backend.render_device.is_cpu():
             # lavapipe: SAPIEN's own BRDF table would cost 5-6 s at the process's first
-            # picture (scripts/startup_probe.py); the cached one draws the same pixels
+            # picture (docs/research/probes/startup_probe.py); the cached one draws the same pixels
             # (sim/brdf_lut.py)
             cameras = [*self._sensors.values(), *self._human_render_cameras.values()]
             brdf_lut.lend(c for cam in cameras for c in cam.camera._render_cameras)
@@ -290,7 +290,7 @@ class HeteroTidyEnv(BaseEnv):
         """The agents' cameras' shaders: SAPIEN's minimal pack, or in v1 the same pack without
         image-based lighting (``sim/shaders/no_ibl``). v1 sets no environment map, so SAPIEN's
         cube map is black and that light adds exactly zero: the same pixels, a sixth sooner on
-        lavapipe (``scripts/shader_cost.py``)."""
+        lavapipe (``docs/research/probes/shader_cost.py``)."""
         minimal = PREBUILT_SHADER_CONFIGS["minimal"]
         if self.visuals != "flat":
             return minimal
@@ -696,7 +696,7 @@ class HeteroTidyEnv(BaseEnv):
         o = {}
         if visual.rgb:
             # alpha dropped by OpenCV: numpy's copy of the strided view cost 0.45 ms a
-            # camera (scripts/profile_team.py hangrcom --callers ascontiguousarray)
+            # camera (docs/research/probes/profile_team.py hangrcom --callers ascontiguousarray)
             o["rgb"] = cv2.cvtColor(cam.get_picture("Color"), cv2.COLOR_RGBA2RGB)
         pos = cam.get_picture("PositionSegmentation")
         seg = pos[..., 3].astype(np.int32)

@@ -120,7 +120,7 @@ def for_agents(model: torch.nn.Module) -> torch.nn.Module:
     """``model`` with its convolution weights stored channels-last, for a team's batch-of-one
     steps. Their inputs are already channels-last (permuted from H x W x C), so oneDNN takes
     the same kernel either way; with matching weights it no longer reorders them on every call
-    (about 0.15 ms per encoder call, ``scripts/team_split.py``; the same bits:
+    (about 0.15 ms per encoder call, ``docs/research/probes/team_split.py``; the same bits:
     ``tests/test_perception_models.py``)."""
     return model.to(memory_format=torch.channels_last)
 

@@ -30,7 +30,8 @@ With ``suspects`` F_s also reads, per pickupable type, the detector's highest pr
 a detection of that type is misplaced, in this frame and over the episode so far (a running
 maximum kept as part of F_s's recurrent state): on val, F_a named the teacher's target type on
 13 % of Place steps (the model card) though the agent had itself detected that type before on
-82 % of them (``scripts/object_memory.py``), and ``fd`` carries one detection per frame.
+82 % of them (``docs/research/probes/object_memory.py``), and ``fd`` carries one detection
+per frame.
 """
 
 from __future__ import annotations

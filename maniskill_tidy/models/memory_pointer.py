@@ -60,7 +60,7 @@ class MemoryPointer(nn.Module):
 class KindBias(nn.Module):
     """A pointer whose score of each candidate is raised by its kind's bias: a whole-policy
     change of a few numbers, for comparing policies on the same episodes
-    (``scripts/kind_bias_probe.py``)."""
+    (``docs/research/probes/kind_bias_probe.py``)."""
 
     def __init__(self, pointer: MemoryPointer, bias: list[float]) -> None:
         super().__init__()

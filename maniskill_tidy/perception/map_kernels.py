@@ -8,7 +8,7 @@ of a team fuse their frames on threads side by side.
 Every kernel repeats numpy's arithmetic operation for operation, in the same precision and
 order (float32 where the numpy code worked in float32, numpy's promotion rules where it mixed),
 with no fast-math: the map is byte for byte what the numpy code made
-(``scripts/map_update_ab.py`` compares both on recorded frames), so no record changes.
+(``docs/research/probes/map_update_ab.py`` compares both on recorded frames), so no record changes.
 """
 
 from __future__ import annotations

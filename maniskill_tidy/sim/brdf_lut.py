@@ -3,8 +3,8 @@
 SAPIEN's camera shaders weight the environment map's light by a 512 x 512 BRDF table (the
 split-sum approximation of image-based lighting). svulkan2 computes it with a compute shader at
 a process's first picture: 5-6 s on lavapipe, 2 cores, about half of making an env
-(``scripts/startup_probe.py``). The table depends on SAPIEN's shader and the Vulkan driver
-alone, so it is read back once, through a camera whose shader copies its texels out
+(``docs/research/probes/startup_probe.py``). The table depends on SAPIEN's shader and the
+Vulkan driver alone, so it is read back once, through a camera whose shader copies its texels out
 (``shaders/brdf_lut``), kept in the user's cache, and lent to every camera. The cameras then
 sample the same texels with the same sampler (linear, clamped to the edge, no mipmaps) and draw
 the same pixels, in both looks (``tests/test_brdf_lut.py`` compares them with SAPIEN's own

@@ -3,8 +3,8 @@
 SAPIEN turns the environment map (``assets/data/environment.hdr``, a 256 x 128 lat-long image
 that stb reads as 8-bit) into a cube map and prefilters its mip levels for rough reflections with
 a compute shader, at a process's first picture: about 2 s on lavapipe, 2 cores, a quarter of
-making a v2 env (``scripts/startup_probe.py``). The result depends on the image, SAPIEN's shader
-and the Vulkan driver alone, so it is exported once with every level (SAPIEN's
+making a v2 env (``docs/research/probes/startup_probe.py``). The result depends on the image,
+SAPIEN's shader and the Vulkan driver alone, so it is exported once with every level (SAPIEN's
 ``RenderCubemap.export``, a KTX file), kept in the user's cache beside the BRDF table
 (``brdf_lut.py``), and loaded from there: svulkan2 takes a KTX file's mip levels as they are and
 prefilters nothing, and the cameras draw the same pixels (``tests/test_environment_map.py``).

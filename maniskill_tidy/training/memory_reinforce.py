@@ -111,7 +111,7 @@ def _play(job: tuple[int, str, dict]) -> dict:
         keep_decisions=bool(mode.get("keep")),
     )  # fmt: skip
     model = _worker["model"]
-    if mode.get("bias"):  # the kinds' biases on the scores (scripts/kind_bias_probe.py)
+    if mode.get("bias"):  # the kinds' biases (docs/research/probes/kind_bias_probe.py)
         model = KindBias(model, mode["bias"])
     team.use_pointer(_worker["setting"], model)
     reward = TeamReward()

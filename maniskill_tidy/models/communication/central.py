@@ -50,9 +50,9 @@ class CentralPlanner(nn.Module):
     It does not read the sub-task in the agent's own upload. Under behaviour cloning that
     field is the teacher's label of the last step, and a node that reads it learns to copy it
     (95-99.7 % of Setting I val steps keep last step's sub-task, per head:
-    ``scripts/label_persistence.py``), then fails on its own sub-tasks at test time. No agent of
-    any scheme reads its own last sub-task; teammates' are read wherever messages carry the
-    state."""
+    ``docs/research/probes/label_persistence.py``), then fails on its own sub-tasks at test
+    time. No agent of any scheme reads its own last sub-task; teammates' are read wherever
+    messages carry the state."""
 
     def __init__(self, cfg) -> None:
         super().__init__()

@@ -1,6 +1,6 @@
 """Whole-policy changes of the object-memory pointer, compared on the same episodes.
 
-    python scripts/kind_bias_probe.py agents/memory.yaml --setting I --episodes 48 \
+    python docs/research/probes/kind_bias_probe.py agents/memory.yaml --setting I --episodes 48 \
         --bias explore=-2 --bias inspect=2 --bias park=2
 
 Plays the trained pointer (``agents/NAME/setting_S``, best choices) on ``--episodes`` train

@@ -1,7 +1,7 @@
 """How long loading a dataset split and listing its episodes take, with Python's cycle
 collector running and paused (issue 48; ``common/memory.py``).
 
-    python scripts/load_probe.py [--dataset data/tidy120] [--split train] [--rounds 3]
+    python docs/research/probes/load_probe.py [--dataset data/tidy120] [--split train] [--rounds 3]
 
 In a process that has imported what a command has (torch, SAPIEN, ManiSkill), whose objects
 every collection walks. Prints the median of alternating rounds. Nothing is written.

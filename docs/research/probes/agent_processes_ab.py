@@ -1,6 +1,6 @@
 """Agents on threads against agents in processes of their own, on the same episode (issue 48).
 
-    python scripts/agent_processes_ab.py [--policy hangrcom] [--env HeteroTidy-v1] [--rounds 3] \
+    python docs/research/probes/agent_processes_ab.py [--policy hangrcom] [--env HeteroTidy-v1] [--rounds 3] \
         [--phases]
 
 Plays one Setting I test episode ``--rounds`` times each way, in turns (threads, processes,

@@ -1,6 +1,6 @@
 """How much of the env's own step is reading the cameras, and how many cores it keeps busy.
 
-    python scripts/render_share.py [--env HeteroTidy-v1] [--policy heuristic-none]
+    python docs/research/probes/render_share.py [--env HeteroTidy-v1] [--policy heuristic-none]
 
 Plays one Setting I test episode with ``--policy``, then replays its actions through the env
 alone twice (as ``bench --only teams`` does) and prints, per replay, the wall and CPU seconds

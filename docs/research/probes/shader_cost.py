@@ -1,6 +1,6 @@
 """Time per picture of one agent camera with SAPIEN's minimal pack and with v1's (issue 48).
 
-    python scripts/shader_cost.py [--env HeteroTidy-v1] [--frames 40] [--pack DIR ...]
+    python docs/research/probes/shader_cost.py [--env HeteroTidy-v1] [--frames 40] [--pack DIR ...]
 
 Cameras on agent 0's mount, with the agent camera's parameters: SAPIEN's "minimal" pack,
 ``sim/shaders/no_ibl`` (v1's, the minimal pack without image-based light) and any ``--pack``

@@ -1,6 +1,6 @@
 """The semantic map's update, old against new, on the same frames (issue 48's safety net).
 
-    python scripts/map_update_ab.py [--ref COMMIT] [--episodes 1] [--repeat 3]
+    python docs/research/probes/map_update_ab.py [--ref COMMIT] [--episodes 1] [--repeat 3]
 
 Plays heuristic-none on Setting I test episodes and keeps every second frame of every agent;
 then fuses them into a map made by ``perception/semantic_map.py`` as it is at ``--ref`` (read
@@ -34,7 +34,7 @@ from maniskill_tidy.perception import semantic_map as today
 from maniskill_tidy.policies import make_team
 from maniskill_tidy.policies.base import PublicInfo
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[3]
 
 
 class Frames:

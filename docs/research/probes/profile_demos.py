@@ -1,6 +1,6 @@
 """Where ``demos --features`` spends a trajectory (issue 48).
 
-    python scripts/profile_demos.py [--env HeteroTidy-v2] [--houses 2] [--top 30] \
+    python docs/research/probes/profile_demos.py [--env HeteroTidy-v2] [--houses 2] [--top 30] \
         [--callers REGEX]
 
 cProfile of the first meta-task's first start of ``--houses`` train houses (one process, as

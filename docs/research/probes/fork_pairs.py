@@ -1,6 +1,6 @@
 """What the forked episodes of ``training/memory_forks.py`` say about the pointer's best choices.
 
-    python scripts/fork_pairs.py data/memory/setting_I/forks_memory-forks
+    python docs/research/probes/fork_pairs.py data/memory/setting_I/forks_memory-forks
 
 Reads the run's checkpoint (``state.pt``: every pair so far) and prints, per (best choice's
 kind, other choice's kind), how many forks there were, in how many the other choice did better
@@ -10,7 +10,7 @@ pointer's folder), whether the pairs can be predicted at all: a copy of that poi
 on the pairs of all base episodes but the last ``--held-out`` ones, with no KL term, and both
 pointers rank the held-out pairs whose returns differ. Nothing is written.
 
-    python scripts/fork_pairs.py data/memory/setting_I/forks_memory-forks \
+    python docs/research/probes/fork_pairs.py data/memory/setting_I/forks_memory-forks \
         --pointer agents/memory/setting_I --held-out 12
 """
 

@@ -1,6 +1,6 @@
 """How long a fresh process takes to make the env and draw its first pictures (issue 48).
 
-    python scripts/startup_probe.py [--runs 3] [--dataset data/tidy120]
+    python docs/research/probes/startup_probe.py [--runs 3] [--dataset data/tidy120]
 
 Every run is a new interpreter, as an evaluation worker, a ``demos`` worker or a CLI command
 is: it times the imports, ``gym.make`` (ManiSkill's set-up, the first reset and its pictures)

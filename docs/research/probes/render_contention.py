@@ -1,6 +1,6 @@
 """How much of the machine one frame's render takes, and what a Python thread beside it costs.
 
-    python scripts/render_contention.py [--env HeteroTidy-v2] [--frames 60] \
+    python docs/research/probes/render_contention.py [--env HeteroTidy-v2] [--frames 60] \
         [--switch-interval 0.0005]
 
 Times the env's ``get_obs`` (every agent's camera drawn and read back) alone, with the cores

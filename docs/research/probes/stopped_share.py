@@ -1,6 +1,6 @@
 """How many of a team's agent-steps are by agents that have stopped (issue 48).
 
-    python scripts/stopped_share.py expert --episodes 4
+    python docs/research/probes/stopped_share.py expert --episodes 4
 
 Plays evenly spread Setting I test episodes and counts, at every step, the agents that have
 taken ``Stop``: their cameras are off (``envs/hetero_tidy.py``), so this is the share of agent

@@ -1,6 +1,6 @@
 """What batching the agents' perception would buy, and what it would change (issue 48).
 
-    python scripts/batch_probe.py [--steps 40]
+    python docs/research/probes/batch_probe.py [--steps 40]
 
 Plays the first steps of a hangrcom Setting I test episode, keeps every agent's inputs to the
 frozen perception model, then times them as three batches of one per step against one batch of

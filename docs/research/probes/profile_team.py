@@ -1,6 +1,6 @@
 """Where a team's episode goes: cProfile of a few Setting I test episodes (issue 48).
 
-    python scripts/profile_team.py hangrcom --episodes 2 [--env HeteroTidy-v2] [--top 40] \
+    python docs/research/probes/profile_team.py hangrcom --episodes 2 [--env HeteroTidy-v2] [--top 40] \
         [--callers REGEX]
 
 Prints the functions with the most time of their own and the most cumulative time, and the

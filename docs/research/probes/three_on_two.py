@@ -1,6 +1,6 @@
 """What three agents' hosts can get out of two cores, with no agent in them (issue 48).
 
-    python scripts/three_on_two.py [--ms 6.5 3.2] [--phases 200]
+    python docs/research/probes/three_on_two.py [--ms 6.5 3.2] [--phases 200]
 
 Starts three processes that each burn ``--ms`` milliseconds of CPU per phase when told to over a
 pipe, as an agent's host does for observe and act, and times the phase: from the first message

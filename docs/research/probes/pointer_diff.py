@@ -1,6 +1,6 @@
 """Where two object-memory pointers choose differently, on the teacher's recorded decisions.
 
-    python scripts/pointer_diff.py agents/memory/setting_I \
+    python docs/research/probes/pointer_diff.py agents/memory/setting_I \
         agents/experiments/memory-ppo/setting_I --rows data/memory/setting_I/val
 
 Both pointers score the same recorded candidates (``training/memory_data.py``: the states the

@@ -1,6 +1,6 @@
 """Two eval workers pinned to their own cores against unpinned, alternately (issue 48).
 
-    python scripts/pinning_ab.py heuristic-none hangrcom --rounds 2
+    python docs/research/probes/pinning_ab.py heuristic-none hangrcom --rounds 2
 
 Each round runs ``bench_workers`` (eval with 1 then 2 local processes on the same 6 Setting I
 test episodes, as ``bench --only teams`` does) once unpinned and once with

@@ -1,6 +1,6 @@
 """Wall time of chosen methods over one Setting I test episode, unprofiled (issue 48).
 
-    TIDY_AGENT_THREADS=1 python scripts/team_split.py hangrcom \
+    TIDY_AGENT_THREADS=1 python docs/research/probes/team_split.py hangrcom \
         maniskill_tidy.policies.executor.SubGoalExecutor.move \
         maniskill_tidy.models.perception.PerceptionModel.step_features
 

@@ -3,7 +3,7 @@ the model card's object-head accuracy it tells a model that cannot know the targ
 that does not remember it (docs/research/research-log.md, "The learned team: how we got there";
 models/decision.py, ``suspects``).
 
-    .venv/bin/python scripts/object_memory.py data/demos_detection_3tasks/setting_I/val
+    .venv/bin/python docs/research/probes/object_memory.py data/demos_detection_3tasks/setting_I/val
 
 Reads demonstration shards (what the agents saw and the teacher's labels), nothing else.
 """

@@ -1,6 +1,6 @@
 """How often a learned agent's perception sees the same inputs as at its previous step (issue 48).
 
-    python scripts/repeated_inputs.py [--policy hangrcom] [--episodes 3] [--setting I]
+    python docs/research/probes/repeated_inputs.py [--policy hangrcom] [--episodes 3] [--setting I]
 
 A frozen model's output could be reused, bit for bit, where its inputs repeat; this counts, over
 Setting I test episodes, the share of agent-steps whose resized RGB, seen-category shares, map
