@@ -73,8 +73,11 @@ def segmenter(tmp_path_factory):
     for split in ("train", "val", "test"):
         cfg = SegDataConfig(None, split, "HeteroTidy-v1", every=3, max_steps=13, houses=1)
         build_segmenter_data(cfg, root / "data" / split, progress=False)
+    # unweighted classes: in 3 epochs it learns the floor and walls (pixel accuracy ~0.35 on
+    # val), what a map is made of; with the objects weighted up it learns next to nothing
     cfg = SegTrainConfig(str(root / "data"), str(root / "segmenter-tiny"), epochs=3, batch=4,
-                         crop=96, widths=(8, 12, 16, 16, 16), lr=0.01)  # fmt: skip
+                         crop=96, widths=(8, 12, 16, 16, 16), lr=0.01,
+                         weight_power=0.0)  # fmt: skip
     train_segmenter(cfg, progress=False)
     return root / "segmenter-tiny"
 

@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from maniskill_tidy.perception.instances import Mask2D
+from maniskill_tidy.perception.instances import Mask2D, coarse
 from maniskill_tidy.perception.seg_classes import seg_classes
-from maniskill_tidy.perception.tracks import Tracker, mask_position
+from maniskill_tidy.perception.tracks import Tracker, coarse_intrinsics, mask_position
 
 K = np.array([[100.0, 0, 50], [0, 100.0, 50], [0, 0, 1]], dtype=np.float32)
 
@@ -113,3 +113,28 @@ def test_a_track_keeps_the_type_most_of_its_sightings_vote_for():
     aside = box(40, 60, 50, 70)  # 10 px at 2 m: 0.2 m
     (_, other), = tracker.update([Mask2D(mug, aside, 0.9)], depth, K, camera_at(0.0), 7)
     assert other.id != track.id
+
+
+@pytest.mark.parametrize("grid", [2, 4])
+def test_a_mask_on_the_segmenters_grid_lies_where_its_full_pixels_do(grid):
+    """Agents locate masks on the segmenter's grid (every ``grid``-th pixel, its own camera
+    matrix): each cell must back-project to the point of the full-resolution pixel it samples."""
+    rng = np.random.default_rng(0)
+    depth = rng.uniform(0.5, 4.0, (100, 100)).astype(np.float32)
+    E = camera_at(0.3)
+    small, Kg = coarse(depth, grid), coarse_intrinsics(K, grid)
+    for r, c in [(0, 0), (3, 7), (12, 20)]:
+        cell = np.zeros(small.shape, dtype=bool)
+        cell[r, c] = True
+        full = np.zeros(depth.shape, dtype=bool)
+        full[r * grid, c * grid] = True
+        assert np.allclose(mask_position(cell, small, Kg, E), mask_position(full, depth, K, E))
+    assert not np.allclose(mask_position(cell, small, K, E), mask_position(full, depth, K, E))
+
+
+def test_an_upscaled_mask_covers_the_blocks_of_its_cells():
+    m = np.zeros((4, 5), dtype=bool)
+    m[1, 2] = m[2, 2] = True
+    big = Mask2D(3, m, 0.7, (slice(1, 3), slice(2, 3))).upscaled(2)
+    assert big.mask.shape == (8, 10) and big.area == 8 and big.cls == 3 and big.score == 0.7
+    assert big.mask[2:6, 4:6].all() and big.box == (slice(2, 6), slice(4, 6))

@@ -62,7 +62,7 @@ def masks_figure(out: Path, segmenter: str, env_id: str = "HeteroTidy-v2",
     from maniskill_tidy.common.plotting import save_figure
     from maniskill_tidy.eval.episode import Execution
     from maniskill_tidy.models.checkpoints import load_segmenter
-    from maniskill_tidy.models.segmenter import Runtime
+    from maniskill_tidy.models.segmenter import Runtime, upsample
     from maniskill_tidy.policies import make_team
 
     runtime = Runtime(load_segmenter(segmenter), 2)
@@ -96,7 +96,7 @@ def masks_figure(out: Path, segmenter: str, env_id: str = "HeteroTidy-v2",
     fig, axes = plt.subplots(len(agents), 3, figsize=(9.6, 3.3 * len(agents)), squeeze=False)
     for r, agent in enumerate(agents):
         _, rgb, depth, truth = best[agent]
-        predicted, _ = runtime(rgb[None], depth[None])
+        predicted = upsample(*runtime(rgb[None], depth[None]), depth.shape)[0]
         panels = [(rgb / 255.0, None, "RGB"), (overlay(rgb, truth), truth, "renderer's classes"),
                   (overlay(rgb, predicted[0]), predicted[0], "segmenter's classes")]  # fmt: skip
         for ax, (img, labels, title) in zip(axes[r], panels, strict=True):

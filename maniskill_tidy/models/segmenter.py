@@ -6,7 +6,9 @@ torch these machines use). Semantic classes per pixel (``perception/seg_classes.
 instances come after, from connected components split at depth edges
 (``perception/instances.py``). The logits come out at half the input's resolution: on 2 CPU
 cores, full-resolution logits over ~100 classes cost more than the rest of the network
-(``shared/reference/segmenter-feasibility.md``), and labels upsample by nearest neighbour.
+(``shared/reference/segmenter-feasibility.md``). Agents make their instances on that grid too
+(a quarter of the pixels to label, split and locate) and upsample the result by nearest
+neighbour.
 Agents run it through ONNX Runtime (:class:`Runtime`), about 2.5x faster than eager torch here
 for the same weights; training and evaluation use torch (:func:`predict`).
 """
@@ -68,9 +70,9 @@ class Segmenter(nn.Module):
 
 
 def predict(model: Segmenter, rgb: np.ndarray, depth_m: np.ndarray, batch: int = 16):
-    """Labels (N, H, W) uint8 and their confidence (N, H, W) float32 at the frames' resolution
-    (:class:`LabelHead`'s, nearest-upsampled), in torch: what :class:`Runtime` gives agents.
-    Each frame's output depends on that frame alone (the network is in eval mode)."""
+    """Labels (N, H/2, W/2) uint8 and their confidence (N, H/2, W/2) float32, at the network's
+    resolution, in torch: what :class:`Runtime` gives agents. Each frame's output depends on
+    that frame alone (the network is in eval mode)."""
     head = LabelHead(model.eval())
     labels, probs = [], []
     with torch.inference_mode():
@@ -80,7 +82,7 @@ def predict(model: Segmenter, rgb: np.ndarray, depth_m: np.ndarray, batch: int =
             label, prob = head(r, d.reshape(len(d), 1, *rgb.shape[1:3]))
             labels.append(label.numpy())
             probs.append(prob.numpy())
-    return upsample(np.concatenate(labels), np.concatenate(probs), rgb.shape[1:3])
+    return np.concatenate(labels), np.concatenate(probs)
 
 
 def upsample(label: np.ndarray, prob: np.ndarray, size) -> tuple[np.ndarray, np.ndarray]:
@@ -134,12 +136,12 @@ class Runtime:
         )
 
     def __call__(self, rgb: np.ndarray, depth_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Frames (N, H, W, 3) uint8 and depth (N, H, W) metres -> labels (N, H, W) uint8 and
-        their confidence, nearest-upsampled to the frames' resolution."""
+        """Frames (N, H, W, 3) uint8 and depth (N, H, W) metres -> labels (N, H/2, W/2) uint8
+        and their confidence, at the network's resolution (:func:`upsample` for the frames')."""
         n, h, w = rgb.shape[:3]
         feed = {
             "rgb": np.ascontiguousarray(rgb.transpose(0, 3, 1, 2), dtype=np.float32),
             "depth": np.ascontiguousarray(depth_m, dtype=np.float32).reshape(n, 1, h, w),
         }
         label, prob = self.session.run(None, feed)
-        return upsample(label, prob, (h, w))
+        return label, prob

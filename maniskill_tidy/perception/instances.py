@@ -35,6 +35,22 @@ class Mask2D:
         """``image[mask] = value``, touching the box only."""
         image[self.window][self.mask[self.window]] = value
 
+    def upscaled(self, step: int) -> Mask2D:
+        """The mask on a grid ``step`` times finer, each cell a ``step`` x ``step`` block (as
+        nearest-neighbour upsampling of the labels it came from would give)."""
+        mask = np.repeat(np.repeat(self.mask, step, axis=0), step, axis=1)
+        box = None if self.box is None else tuple(
+            slice((b.start or 0) * step, None if b.stop is None else b.stop * step)
+            for b in self.box
+        )  # fmt: skip
+        return Mask2D(self.cls, mask, self.score, box)
+
+
+def coarse(image: np.ndarray, step: int) -> np.ndarray:
+    """Every ``step``-th pixel of an image, from the first: what a label at the segmenter's
+    resolution covers first (``models/segmenter.py: upsample`` maps it back)."""
+    return image[::step, ::step]
+
 
 def depth_edges(depth: np.ndarray) -> np.ndarray:
     """Pixels whose depth differs from a 4-neighbour's by more than the jump allowed there."""

@@ -44,6 +44,16 @@ def camera_position(extrinsics) -> np.ndarray:
     return -E[:3, :3].T @ E[:3, 3]
 
 
+def coarse_intrinsics(intrinsics, step: int) -> np.ndarray:
+    """The pinhole matrix of an image keeping every ``step``-th pixel from the first: its pixel
+    u is pixel ``step`` * u of the full image, whose centre (the renderer puts pixel u's at
+    u + 0.5) lies at u + 0.5 / ``step`` in the coarse image's units."""
+    K = np.array(intrinsics, dtype=np.float64)
+    K[:2] /= step
+    K[:2, 2] += 0.5 - 0.5 / step
+    return K
+
+
 def mask_position(
     mask: np.ndarray | Mask2D, depth: np.ndarray, intrinsics, extrinsics
 ) -> np.ndarray | None:

@@ -31,9 +31,14 @@ from typing import ClassVar
 import numpy as np
 
 from maniskill_tidy.envs.actions import MIN_PIXELS, Action, Targeted
-from maniskill_tidy.perception.instances import split_instances
+from maniskill_tidy.perception.instances import coarse, split_instances
 from maniskill_tidy.perception.seg_classes import STRUCTURE, seg_classes
-from maniskill_tidy.perception.tracks import Tracker, camera_position, mask_position
+from maniskill_tidy.perception.tracks import (
+    Tracker,
+    camera_position,
+    coarse_intrinsics,
+    mask_position,
+)
 from maniskill_tidy.policies.base import Agent, AgentView, PublicInfo, Team
 from maniskill_tidy.policies.channel import Outbox
 from maniskill_tidy.sim.house_scene import Instance
@@ -170,6 +175,10 @@ class PixelsAgent(Agent):
         self.footprints: dict[str, list] = {}  # furniture type -> [(id, footprint)]
         for f in public.house.furniture:
             self.footprints.setdefault(f.type, []).append((f.id, f.footprint()))
+        self.structure_ids = np.zeros(256, dtype=np.int32)  # class -> id (robots by mask)
+        for cls, sid in self.table.structure.items():
+            if c.names[cls] != "robot":
+                self.structure_ids[cls] = sid
         self.held = 0  # seg id of what this agent believes it holds
         self.seg = None  # this frame's predicted ids
         self.points = None  # this frame's back-projection inputs
@@ -177,20 +186,22 @@ class PixelsAgent(Agent):
 
     # ------------------------------------------------------------------ perception
     def _frame(self, obs: dict, step: int) -> np.ndarray:
+        """This frame's segmentation image in the agent's own ids. Masks are made, named and
+        tracked on the segmenter's grid (every other pixel: its labels' resolution), with the
+        depth and camera matrix of that grid, and the image upsampled by nearest neighbour."""
         c, table = self.table.classes, self.table
         rgb, depth = frame_arrays(obs)
         labels, probs = self.segmenter(self.name, rgb, depth)
-        seg = np.zeros(labels.shape, dtype=np.int32)
+        grid = depth.shape[0] // labels.shape[0]
+        depth_g = coarse(depth, grid)
+        seg = self.structure_ids[labels]
         robot = c.index["robot"]
-        for cls, sid in table.structure.items():
-            if cls != robot:
-                seg[labels == cls] = sid
-        K, E = obs["intrinsics"], obs["extrinsics"]
+        K, E = coarse_intrinsics(obs["intrinsics"], grid), obs["extrinsics"]
         camera = camera_position(E)
         objects = []
         start = time.perf_counter()
-        masks = split_instances(labels, depth, self.instance_classes, probs, MIN_PIXELS,
-                                joined=self.object_classes)  # fmt: skip
+        masks = split_instances(labels, depth_g, self.instance_classes, probs,
+                                -(-MIN_PIXELS // grid**2), joined=self.object_classes)  # fmt: skip
         named = time.perf_counter()
         self.segmenter.seconds["instances"] += named - start
         for m in masks:
@@ -198,7 +209,7 @@ class PixelsAgent(Agent):
                 if m.score >= self.segmenter.threshold:
                     objects.append(m)
                 continue
-            p = mask_position(m, depth, K, E)
+            p = mask_position(m, depth_g, K, E)
             if p is None:
                 continue
             if m.cls == robot:
@@ -206,14 +217,14 @@ class PixelsAgent(Agent):
                     m.paint(seg, table.structure[robot])
             elif (fid := self._furniture_at(c.names[m.cls].split(":", 1)[1], p)) is not None:
                 m.paint(seg, table.furniture[fid])
-        for m, track in self.tracker.update(objects, depth, K, E, step):
+        for m, track in self.tracker.update(objects, depth_g, K, E, step):
             sid = table.object_id(track)
-            if self.held and self._is_held(m, depth, K, E, camera):
+            if self.held and self._is_held(m, depth_g, K, E, camera):
                 sid = self.held
             m.paint(seg, sid)
-        self.points = (depth, K, E)
+        self.points = (depth, obs["intrinsics"], E)
         self.segmenter.seconds["labels"] += time.perf_counter() - named
-        return seg
+        return np.repeat(np.repeat(seg, grid, axis=0), grid, axis=1)
 
     def _furniture_at(self, type_name: str, p: np.ndarray) -> str | None:
         """The piece of the floor plan of this type whose footprint lies nearest ``p``."""

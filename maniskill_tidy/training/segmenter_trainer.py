@@ -3,7 +3,8 @@
 ``maniskill-tidy train-segmenter --data data/segmenter/HeteroTidy-v2 --out agents/segmenter-v2``
 reads the frames ``segmenter-data`` rendered (train houses train, val houses select, test houses
 report once), fits ``models/segmenter.py`` with class-weighted cross-entropy on random crops at
-full resolution, keeps the epoch of best val mask AP50 over the pickupable types, and writes
+full resolution, keeps the epoch of best val mask AP50 over the pickupable types (then pixel
+accuracy), and writes
 ``model.pt`` (fp16), ``card.json`` (val curve, test mask AP by size, training time, data hashes,
 weights sha256) and ``curve.png`` beside it. Resumes from its last epoch (an atomic checkpoint).
 """
@@ -26,8 +27,8 @@ from maniskill_tidy.common.files import write_atomic
 from maniskill_tidy.envs.actions import MIN_PIXELS
 from maniskill_tidy.eval.mask_ap import mask_ap, score_threshold
 from maniskill_tidy.models import checkpoints
-from maniskill_tidy.models.segmenter import Segmenter, predict
-from maniskill_tidy.perception.instances import Mask2D, split_instances
+from maniskill_tidy.models.segmenter import Segmenter, predict, upsample
+from maniskill_tidy.perception.instances import Mask2D, coarse, split_instances
 from maniskill_tidy.perception.seg_classes import seg_classes
 
 SPLITS = ("train", "val", "test")
@@ -95,17 +96,21 @@ def truth_masks(cls: np.ndarray, instance: np.ndarray, pickupable: list[int]) ->
 
 
 def _pairs(model: Segmenter, frames: dict) -> tuple[list, list[int], np.ndarray]:
-    """Per frame (truth, predicted instances) over the pickupable types, as agents make them
-    (masks under ``MIN_PIXELS`` left out: agents cannot act on them), the pickupable classes and
-    the predicted labels."""
+    """Per frame (truth, predicted instances) over the pickupable types, the instances made as
+    agents make them (on the network's grid, masks of ``MIN_PIXELS`` or more at the frames'
+    resolution: agents cannot act on smaller ones) and compared at the frames' resolution;
+    the pickupable classes and the predicted labels, upsampled."""
     classes = seg_classes()
     pickupable = [i for i in range(len(classes.names)) if classes.is_pickupable(i)]
     depth = frames["depth_mm"].astype(np.float32) / 1000.0
     labels, probs = predict(model, frames["rgb"], depth)
+    step = depth.shape[1] // labels.shape[1]
+    least = -(-MIN_PIXELS // step**2)
     pairs = [(truth_masks(frames["cls"][k], frames["instance"][k], pickupable),
-              split_instances(labels[k], depth[k], pickupable, probs[k], MIN_PIXELS))
+              [m.upscaled(step) for m in split_instances(labels[k], coarse(depth[k], step),
+                                                         pickupable, probs[k], least)])
              for k in range(len(labels))]  # fmt: skip
-    return pairs, pickupable, labels
+    return pairs, pickupable, upsample(labels, probs, depth.shape[1:3])[0]
 
 
 def agent_threshold(model: Segmenter, frames: dict) -> dict:
@@ -161,6 +166,12 @@ def _crops(frames: dict, index: np.ndarray, crop: int, rng: np.random.Generator,
         for store, p in zip(out, parts, strict=True):
             store.append(p)
     return tuple(torch.stack(s) for s in out)
+
+
+def _rank(scores: dict) -> tuple[float, float]:
+    """How val ranks epochs: mask AP50, then pixel accuracy (a segmenter that finds no object
+    yet still learns the floor and walls teams map with)."""
+    return (scores["AP50"], scores["pixel_accuracy"])
 
 
 def train_segmenter(cfg: SegTrainConfig, progress: bool = True) -> dict:
@@ -230,7 +241,7 @@ def train_segmenter(cfg: SegTrainConfig, progress: bool = True) -> dict:
             for k in ("AP", "AP50", "pixel_accuracy_pickupable"):
                 point[f"val_{k}"] = v[k]
             state["curve"].append(point)
-            if state["best"] is None or v["AP50"] > state["best"]["AP50"]:
+            if state["best"] is None or _rank(v) > _rank(state["best"]):
                 state["best"], state["best_epoch"] = v, state["epoch"]
                 best_state = copy.deepcopy(model.state_dict())
             buf = io.BytesIO()
