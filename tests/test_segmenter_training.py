@@ -85,3 +85,15 @@ def test_a_tiny_segmenter_trains_resumes_and_loads(tiny_data, tmp_path, monkeypa
     # the agents' frames in one batch: each frame's labels are those it gets alone
     alone = [Runtime(model)(z_rgb[i : i + 1], z_depth[i : i + 1])[0][0] for i in range(2)]
     assert all((ort_labels[i] == alone[i]).all() for i in range(2))
+
+    # scored again with unchanged code: the same figures, the earlier ones kept beside them
+    again = st.rescore(tmp_path / "a", tiny_data)
+    assert again["test"] == card["test"] and again["val"] == card["val"]
+    assert again["scored_before"] == [{k: card[k] for k in ("val", "test", "agent_threshold")}]
+    assert json.loads((tmp_path / "a" / "card.json").read_text())["scored_before"]
+    other = tmp_path / "other"
+    for split in ("val", "test"):  # other frames than it was scored on: refused
+        (other / split).mkdir(parents=True)
+        (other / split / "manifest.json").write_text(json.dumps({"data_hash": "0" * 64}))
+    with pytest.raises(ValueError, match="data hashes differ"):
+        st.rescore(tmp_path / "a", other)

@@ -80,8 +80,15 @@ def _segmenter_data(args: argparse.Namespace) -> int:
 
 
 def _train_segmenter(args: argparse.Namespace) -> int:
-    from maniskill_tidy.training.segmenter_trainer import SegTrainConfig, train_segmenter
+    from maniskill_tidy.training.segmenter_trainer import SegTrainConfig, rescore, train_segmenter
 
+    if args.rescore:
+        card = rescore(args.out, args.data)
+        v, t = card["val"], card["test"]
+        print(f"{args.out}: scored again: val mask AP50 {v['AP50']:.3f}; test mask AP "
+              f"{t['AP']:.3f}, AP50 {t['AP50']:.3f}; agent threshold "
+              f"{card['agent_threshold']['threshold']:.3f}")  # fmt: skip
+        return 0
     if args.epochs < 1 or args.batch < 1 or not 16 <= args.crop <= 224 or args.crop % 2:
         raise ValueError(f"--epochs {args.epochs}, --batch {args.batch}, --crop {args.crop}: "
                          "expected at least 1, at least 1, an even size in 16..224")  # fmt: skip
@@ -232,6 +239,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     ts.add_argument("--crop", type=int, default=128, help="training crops, px (frames are 224)")
     ts.add_argument("--widths", help="channels of the five levels (12,16,32,48,64)")
     ts.add_argument("--seed", type=int, default=0)
+    ts.add_argument("--rescore", action="store_true",
+                    help="score the trained segmenter in --out again on --data's val and test "
+                    "frames (its card's val, test and agent threshold)")  # fmt: skip
     ts.set_defaults(func=_train_segmenter)
 
     tr = sub.add_parser(

@@ -254,7 +254,8 @@ def train_segmenter(cfg: SegTrainConfig, progress: bool = True) -> dict:
             bar.update(1)
             bar.set_postfix(val_AP50=f"{v['AP50']:.3f}")
     model.load_state_dict(best_state)
-    model.eval()
+    checkpoints.save_segmenter(model, out)
+    model = checkpoints.load_segmenter(out).eval()  # scored as it ships: fp16-rounded weights
     test = load_split(data / "test", cfg.limit.get("test"))
     card = {
         "name": out.name,
@@ -266,17 +267,39 @@ def train_segmenter(cfg: SegTrainConfig, progress: bool = True) -> dict:
         "parameters": sum(p.numel() for p in model.parameters()),
         "frames": {"train": len(train["rgb"]), "val": len(val["rgb"]), "test": len(test["rgb"])},
         "best_epoch": state["best_epoch"],
-        "val": state["best"],
+        "val": evaluate(model, val),  # the chosen epoch's, as it ships (the curve's: in fp32)
         "test": evaluate(model, test),  # reported once, for the epoch val chose
         "agent_threshold": agent_threshold(model, val),  # chosen on val
         "curve": state["curve"],
         "train_seconds": round(state["seconds"], 1),
+        "weights_sha256": checkpoints.weights_sha256(out),
     }
-    checkpoints.save_segmenter(model, out)
-    card["weights_sha256"] = checkpoints.weights_sha256(out)
     write_atomic(out / "card.json", json.dumps(card, indent=1).encode())
     plot_curve(card, out / "curve.png")
     ckpt.unlink(missing_ok=True)
+    return card
+
+
+def rescore(folder: str | Path, data: str | Path) -> dict:
+    """A trained segmenter's card scored again with this code's instances (its weights, val
+    frames and test frames unchanged): ``val``, ``test`` and ``agent_threshold`` replaced, the
+    previous ones kept under ``scored_before``. For a card whose scoring changed after
+    training (how agents make instances); its learning curve stays as measured then."""
+    folder, data = Path(folder), Path(data)
+    card = json.loads((folder / "card.json").read_text())
+    hashes = {s: json.loads((data / s / "manifest.json").read_text())["data_hash"]
+              for s in ("val", "test")}  # fmt: skip
+    if any(hashes[s] != card["config"]["data"][s] for s in hashes):
+        raise ValueError(f"{data}: not the frames {folder / 'card.json'} was trained and scored "
+                         "on (data hashes differ)")  # fmt: skip
+    model = checkpoints.load_segmenter(folder).eval()
+    val = load_split(data / "val", card["config"]["eval_frames"])
+    test = load_split(data / "test", card["config"]["limit"].get("test"))
+    before = {k: card[k] for k in ("val", "test", "agent_threshold")}
+    card["val"], card["test"] = evaluate(model, val), evaluate(model, test)
+    card["agent_threshold"] = agent_threshold(model, val)
+    card["scored_before"] = [*card.get("scored_before", []), before]
+    write_atomic(folder / "card.json", json.dumps(card, indent=1).encode())
     return card
 
 
