@@ -165,3 +165,19 @@ def test_show_masks_draws_each_agents_frame_beside_the_truth(segmenter, tmp_path
     one_line_error(cli("show-masks", "--segmenter", str(segmenter), "--out",
                        str(tmp_path / "m.jpg")), "expected a .png")  # fmt: skip
     assert not (tmp_path / "m.png").exists()
+
+
+def test_a_segmenter_of_another_class_table_is_refused(segmenter, tmp_path):
+    import shutil
+
+    from maniskill_tidy.policies.pixels import Segmenter
+
+    other = tmp_path / "other"
+    shutil.copytree(segmenter, other)
+    card = json.loads((other / "card.json").read_text())
+    card["config"]["classes"] = "000000000000"  # trained before the object types changed
+    (other / "card.json").write_text(json.dumps(card))
+    with pytest.raises(ValueError, match="another class table"):
+        Segmenter(str(other))
+    own = json.loads((segmenter / "card.json").read_text())
+    assert Segmenter(str(segmenter)).sha256 == own["weights_sha256"]  # its own table: loads

@@ -66,8 +66,14 @@ class Segmenter:
             self._loaded[folder] = (runtime, weights_sha256(folder))
         self.runtime, self.sha256 = self._loaded[folder]
         # object masks less confident than this are left out (the card's, chosen on val)
-        card = Path(folder) / "card.json"
-        chosen = json.loads(card.read_text()).get("agent_threshold") if card.is_file() else None
+        card_path = Path(folder) / "card.json"
+        card = json.loads(card_path.read_text()) if card_path.is_file() else {}
+        digest = card.get("config", {}).get("classes")
+        if digest is not None and digest != seg_classes().digest:
+            raise ValueError(f"{folder}: trained on another class table ({digest}, this code's is "
+                             f"{seg_classes().digest}): the object types changed; render and "
+                             "train it again (make segmenter-data train-segmenter)")  # fmt: skip
+        chosen = card.get("agent_threshold")
         self.threshold = float(chosen["threshold"]) if chosen else 0.0
         # seconds spent per stage and frames seen in this process (``bench --only teams``)
         self.seconds = {"segmenter": 0.0, "instances": 0.0, "labels": 0.0}
