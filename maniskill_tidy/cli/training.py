@@ -89,12 +89,14 @@ def _train_segmenter(args: argparse.Namespace) -> int:
               f"{t['AP']:.3f}, AP50 {t['AP50']:.3f}; agent threshold "
               f"{card['agent_threshold']['threshold']:.3f}")  # fmt: skip
         return 0
+    if args.stem < 0:
+        raise ValueError(f"--stem {args.stem}: expected 0 (none) or a number of channels")
     if args.epochs < 1 or args.batch < 1 or not 16 <= args.crop <= 224 or args.crop % 2:
         raise ValueError(f"--epochs {args.epochs}, --batch {args.batch}, --crop {args.crop}: "
                          "expected at least 1, at least 1, an even size in 16..224")  # fmt: skip
     extra = widths("widths", args.widths, count=5) if args.widths else {}
     cfg = SegTrainConfig(args.data, args.out, epochs=args.epochs, batch=args.batch,
-                         crop=args.crop, seed=args.seed, **extra)  # fmt: skip
+                         crop=args.crop, seed=args.seed, stem=args.stem, **extra)  # fmt: skip
     card = train_segmenter(cfg)
     t, v = card["test"], card["val"]
     print(f"{args.out}: best epoch {card['best_epoch']} of {args.epochs} "
@@ -239,6 +241,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     ts.add_argument("--crop", type=int, default=128, help="training crops, px (frames are 224)")
     ts.add_argument("--widths", help="channels of the five levels (12,16,32,48,64)")
     ts.add_argument("--seed", type=int, default=0)
+    ts.add_argument("--stem", type=int, default=0,
+                    help="channels of a full-resolution convolution before the first stride "
+                    "(0: none)")  # fmt: skip
     ts.add_argument("--rescore", action="store_true",
                     help="score the trained segmenter in --out again on --data's val and test "
                     "frames (its card's val, test and agent threshold)")  # fmt: skip

@@ -212,6 +212,7 @@ def load_segmenter(folder: Path):
     from maniskill_tidy.models.segmenter import Segmenter
 
     saved = read(folder, "maniskill-tidy train-segmenter")
-    model = Segmenter(saved["config"]["classes"], tuple(saved["config"]["widths"]))
+    cfg = saved["config"]
+    model = Segmenter(cfg["classes"], tuple(cfg["widths"]), cfg.get("stem", 0))
     model.load_state_dict(float_state(saved["state"]))
     return model.eval()

@@ -38,11 +38,18 @@ def block(cin: int, cout: int, stride: int = 1) -> nn.Sequential:
 class Segmenter(nn.Module):
     """RGB (uint8-valued floats) and depth (metres) -> class logits at half resolution."""
 
-    def __init__(self, classes: int, widths: tuple[int, ...] = (12, 16, 32, 48, 64)) -> None:
+    def __init__(
+        self, classes: int, widths: tuple[int, ...] = (12, 16, 32, 48, 64), stem: int = 0
+    ) -> None:
         super().__init__()
-        self.classes, self.widths = classes, tuple(widths)
+        self.classes, self.widths, self.stem_width = classes, tuple(widths), stem
+        # ``stem`` > 0: one convolution at the frame's full resolution before the first stride,
+        # so that a small object's detail reaches a learned filter before it is subsampled
+        self.stem = nn.Identity() if not stem else nn.Sequential(
+            nn.Conv2d(4, stem, 3, 1, 1, bias=False), nn.BatchNorm2d(stem), nn.ReLU(inplace=True)
+        )  # fmt: skip
         self.down = nn.ModuleList()
-        cin = 4
+        cin = stem or 4
         for w in widths:  # stride 2, 4, 8, 16, 32
             self.down.append(block(cin, w, stride=2))
             cin = w
@@ -53,7 +60,7 @@ class Segmenter(nn.Module):
 
     def forward(self, rgb: torch.Tensor, depth: torch.Tensor) -> torch.Tensor:
         """``rgb`` (B, 3, H, W) in 0..255, ``depth`` (B, 1, H, W) in metres."""
-        x = torch.cat([rgb / 127.5 - 1.0, depth / DEPTH_SCALE], dim=1)
+        x = self.stem(torch.cat([rgb / 127.5 - 1.0, depth / DEPTH_SCALE], dim=1))
         skips = []
         for down in self.down:
             x = down(x)
@@ -66,7 +73,7 @@ class Segmenter(nn.Module):
         return self.head(x)  # (B, classes, H / 2, W / 2)
 
     def config(self) -> dict:
-        return {"classes": self.classes, "widths": list(self.widths)}
+        return {"classes": self.classes, "widths": list(self.widths), "stem": self.stem_width}
 
 
 def predict(model: Segmenter, rgb: np.ndarray, depth_m: np.ndarray, batch: int = 16):
