@@ -4,7 +4,7 @@ each confidence (the softmax's maximum at half resolution, the same on every oth
 sigmoid of the two best logits' margin) and with masks under 8 or 20 pixels kept; then each
 head's time per frame in ONNX Runtime, 2 threads, batches of 3 (run it on an idle machine).
 
-    .venv/bin/python scripts/segmenter_confidence.py agents/segmenter-v2 \
+    .venv/bin/python docs/research/probes/segmenter_confidence.py agents/segmenter-v2 \
         --data data/segmenter/HeteroTidy-v2/val --frames 400
 """
 
