@@ -2,7 +2,8 @@
 head, models/segmenter.py: LabelHead). On val frames: mask AP50 over the pickupable types with
 each confidence (the softmax's maximum at half resolution, the same on every other cell, the
 sigmoid of the two best logits' margin) and with masks under 8 or 20 pixels kept; then each
-head's time per frame in ONNX Runtime, 2 threads, batches of 3 (run it on an idle machine).
+head's time per frame in ONNX Runtime, 2 threads, batches of 3 (run it on an idle machine);
+first, which pixels it calls objects and with which type.
 
     .venv/bin/python docs/research/probes/segmenter_confidence.py agents/segmenter-v2 \
         --data data/segmenter/HeteroTidy-v2/val --frames 400
@@ -103,6 +104,15 @@ def main() -> None:
             for k, v in c.items():
                 conf.setdefault(k, []).append(v.numpy())
     truth = [truth_masks(frames["cls"][i], frames["instance"][i], pick) for i in range(len(depth))]
+    full = upsample(np.concatenate(labels), np.concatenate(labels), depth.shape[1:])[0]
+    on = classes.is_pickupable(frames["cls"]) & (frames["cls"] > 0)
+    said = classes.is_pickupable(full) & (full > 0)
+    both = on & said
+    print(
+        f"object pixels labelled as some object: {said[on].mean():.2f}; "
+        f"pixels labelled as objects that are one: {on[said].mean():.2f}; right type where "
+        f"both say object: {(full[both] == frames['cls'][both]).mean():.2f}"
+    )
     print("confidence | masks kept from | val mask AP50 | AP | ms per frame")
     for kind, parts in conf.items():
         lab, prob = upsample(np.concatenate(labels), np.concatenate(parts), depth.shape[1:])
