@@ -117,6 +117,18 @@ class LabelHead(nn.Module):
         return label[:, 0].to(torch.uint8), torch.sigmoid(best[:, 0] - best[:, 1])
 
 
+class _Served(nn.Module):
+    """:class:`LabelHead` on the frames as the env gives them, (N, H, W, 3) uint8 and (N, H, W)
+    metres: the layout change and the cast run inside the graph, not in numpy per step."""
+
+    def __init__(self, model: Segmenter) -> None:
+        super().__init__()
+        self.head = LabelHead(model)
+
+    def forward(self, rgb: torch.Tensor, depth: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        return self.head(rgb.permute(0, 3, 1, 2).float(), depth.unsqueeze(1))
+
+
 class Runtime:
     """The segmenter served by ONNX Runtime with ``threads`` threads: what agents call on
     their frames. Exported once from the torch weights in memory (nothing written); labels
@@ -128,17 +140,20 @@ class Runtime:
 
         import onnxruntime as ort
 
-        rgb, depth = torch.zeros(1, 3, 64, 64), torch.zeros(1, 1, 64, 64)
+        rgb, depth = torch.zeros(1, 64, 64, 3, dtype=torch.uint8), torch.zeros(1, 64, 64)
         buf = io.BytesIO()
         with warnings.catch_warnings():  # the TorchScript exporter's deprecation notice
             warnings.simplefilter("ignore")
             torch.onnx.export(
-                LabelHead(model.eval()), (rgb, depth), buf, dynamo=False, opset_version=17,
+                _Served(model.eval()), (rgb, depth), buf, dynamo=False, opset_version=17,
                 input_names=["rgb", "depth"], output_names=["label", "prob"],
-                dynamic_axes={n: {0: "batch", 2: "height", 3: "width"} for n in ("rgb", "depth")},
+                dynamic_axes={"rgb": {0: "batch", 1: "height", 2: "width"},
+                              "depth": {0: "batch", 1: "height", 2: "width"}},
             )  # fmt: skip
         options = ort.SessionOptions()
         options.intra_op_num_threads, options.inter_op_num_threads = threads, 1
+        # no spinning between calls: the renderer needs those cores the moment a call returns
+        options.add_session_config_entry("session.intra_op.allow_spinning", "0")
         self.session = ort.InferenceSession(
             buf.getvalue(), options, providers=["CPUExecutionProvider"]
         )
@@ -148,8 +163,8 @@ class Runtime:
         and their confidence, at the network's resolution (:func:`upsample` for the frames')."""
         n, h, w = rgb.shape[:3]
         feed = {
-            "rgb": np.ascontiguousarray(rgb.transpose(0, 3, 1, 2), dtype=np.float32),
-            "depth": np.ascontiguousarray(depth_m, dtype=np.float32).reshape(n, 1, h, w),
+            "rgb": np.ascontiguousarray(rgb, dtype=np.uint8),
+            "depth": np.ascontiguousarray(depth_m, dtype=np.float32).reshape(n, h, w),
         }
         label, prob = self.session.run(None, feed)
         return label, prob
