@@ -89,6 +89,8 @@ def _train_segmenter(args: argparse.Namespace) -> int:
               f"{t['AP']:.3f}, AP50 {t['AP50']:.3f}; agent threshold "
               f"{card['agent_threshold']['threshold']:.3f}")  # fmt: skip
         return 0
+    if not 0 <= args.weight_power <= 1:
+        raise ValueError(f"--weight-power {args.weight_power}: expected 0 (unweighted) to 1")
     if args.stem < 0:
         raise ValueError(f"--stem {args.stem}: expected 0 (none) or a number of channels")
     if args.epochs < 1 or args.batch < 1 or not 16 <= args.crop <= 224 or args.crop % 2:
@@ -96,7 +98,8 @@ def _train_segmenter(args: argparse.Namespace) -> int:
                          "expected at least 1, at least 1, an even size in 16..224")  # fmt: skip
     extra = widths("widths", args.widths, count=5) if args.widths else {}
     cfg = SegTrainConfig(args.data, args.out, epochs=args.epochs, batch=args.batch,
-                         crop=args.crop, seed=args.seed, stem=args.stem, **extra)  # fmt: skip
+                         crop=args.crop, seed=args.seed, stem=args.stem,
+                         weight_power=args.weight_power, **extra)  # fmt: skip
     card = train_segmenter(cfg)
     t, v = card["test"], card["val"]
     print(f"{args.out}: best epoch {card['best_epoch']} of {args.epochs} "
@@ -244,6 +247,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     ts.add_argument("--stem", type=int, default=0,
                     help="channels of a full-resolution convolution before the first stride "
                     "(0: none)")  # fmt: skip
+    ts.add_argument("--weight-power", type=float, default=0.5,
+                    help="class weights 1 / frequency ** this (0: unweighted)")  # fmt: skip
     ts.add_argument("--rescore", action="store_true",
                     help="score the trained segmenter in --out again on --data's val and test "
                     "frames (its card's val, test and agent threshold)")  # fmt: skip
