@@ -632,7 +632,7 @@ def test_a_student_without_a_trained_model_is_refused_before_anything_is_written
     config = tmp_path / "untrained.yaml"
     config.write_text(f"name: untrained\nout: {tmp_path / 'models'}\n")
     cfg = replace(DEMOS, student=str(config))
-    with pytest.raises(ValueError, match="student .*model.pt not found; train it"):
+    with pytest.raises(ValueError, match=r"student .*model.pt not found \(looked in .*; train it"):
         build_demo_features(tmp_path / "demos", str(small_dataset), cfg, progress=False)
     assert not (tmp_path / "demos").exists()
 

@@ -214,7 +214,7 @@ def test_a_bad_memory_config_is_refused_in_one_line(tmp_path, small_dataset):
             MemoryConfig.load(memory_config(tmp_path, small_dataset, explore=explore))
     untrained = team_class(str(memory_config(tmp_path, small_dataset, "untrained")))
     why = untrained.missing_model(((1, 0, 0), (1, 0, 1), (1, 1, 1)))
-    assert "not found; train it with `maniskill-tidy train" in why
+    assert "model.pt not found (looked in" in why and "train it with `maniskill-tidy train" in why
 
 
 def test_the_team_return_is_discounted_and_shared_per_step():

@@ -33,6 +33,15 @@ def test_a_team_by_import_path_plays_with_two_workers(folder):
     assert s["episodes"] == 2 and s["workers"] == 2 and s["obs_mode"] == "none"
 
 
+def test_a_team_by_import_path_plays_on_ray_actors(folder):
+    pytest.importorskip("ray")
+    p = cli("eval", "--policy", "wanderer:WandererTeam", "--setting", "I", "--episodes", "2",
+            "--workers", "2", "--ray", "--out", "out", cwd=folder)  # fmt: skip
+    assert p.returncode == 0, p.stderr[-2000:]
+    s = _summary(folder / "out", "wanderer")
+    assert s["episodes"] == 2 and s["ray"]
+
+
 def test_a_config_names_its_team_and_its_options(folder, monkeypatch):
     from maniskill_tidy.envs.actions import Action
     from maniskill_tidy.policies import make_team
