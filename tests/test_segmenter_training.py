@@ -113,3 +113,24 @@ def test_a_segmenter_with_a_full_resolution_stem_saves_and_loads(tmp_path):
     rgb, depth = torch.rand(1, 3, 32, 32) * 255, torch.rand(1, 1, 32, 32) * 3
     with torch.inference_mode():
         assert (model(rgb, depth).argmax(1) == back(rgb, depth).argmax(1)).float().mean() > 0.99
+
+
+def test_the_objectness_loss_scores_which_pixels_are_objects_not_their_type():
+    import torch
+
+    from maniskill_tidy.training.segmenter_trainer import objectness_dice
+
+    first = 3  # classes 0-2 structure/furniture, 3-4 two pickupable types
+    target = torch.zeros(1, 4, 4, dtype=torch.long)
+    target[0, :2, :2] = 3  # one small object in a corner
+
+    def logits_of(label: torch.Tensor) -> torch.Tensor:
+        return torch.nn.functional.one_hot(label, 5).permute(0, 3, 1, 2).float() * 20
+
+    right = objectness_dice(logits_of(target), target, first)
+    other_type = objectness_dice(logits_of(torch.where(target == 3, 4, target)), target, first)
+    missed = objectness_dice(logits_of(torch.zeros_like(target)), target, first)
+    everywhere = objectness_dice(logits_of(torch.full_like(target, 4)), target, first)
+    assert right < 0.01 and other_type < 0.01  # the type is the cross-entropy's business
+    assert missed > 0.7  # a missed object costs as much however small it is
+    assert 0.3 < everywhere < 0.9  # objects everywhere: all found, three quarters false

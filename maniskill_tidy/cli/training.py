@@ -91,6 +91,8 @@ def _train_segmenter(args: argparse.Namespace) -> int:
         return 0
     if not 0 <= args.weight_power <= 1:
         raise ValueError(f"--weight-power {args.weight_power}: expected 0 (unweighted) to 1")
+    if args.objectness < 0:
+        raise ValueError(f"--objectness {args.objectness}: expected 0 (none) or a positive weight")
     if args.stem < 0:
         raise ValueError(f"--stem {args.stem}: expected 0 (none) or a number of channels")
     if args.epochs < 1 or args.batch < 1 or not 16 <= args.crop <= 224 or args.crop % 2:
@@ -99,7 +101,8 @@ def _train_segmenter(args: argparse.Namespace) -> int:
     extra = widths("widths", args.widths, count=5) if args.widths else {}
     cfg = SegTrainConfig(args.data, args.out, epochs=args.epochs, batch=args.batch,
                          crop=args.crop, seed=args.seed, stem=args.stem,
-                         weight_power=args.weight_power, **extra)  # fmt: skip
+                         weight_power=args.weight_power, objectness=args.objectness,
+                         **extra)  # fmt: skip
     card = train_segmenter(cfg)
     t, v = card["test"], card["val"]
     print(f"{args.out}: best epoch {card['best_epoch']} of {args.epochs} "
@@ -249,6 +252,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                     "(0: none)")  # fmt: skip
     ts.add_argument("--weight-power", type=float, default=0.5,
                     help="class weights 1 / frequency ** this (0: unweighted)")  # fmt: skip
+    ts.add_argument("--objectness", type=float, default=0.0,
+                    help="weight of a Dice loss on which pixels are pickupable objects beside "
+                    "the cross-entropy (0: none)")  # fmt: skip
     ts.add_argument("--rescore", action="store_true",
                     help="score the trained segmenter in --out again on --data's val and test "
                     "frames (its card's val, test and agent threshold)")  # fmt: skip

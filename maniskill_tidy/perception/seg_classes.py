@@ -33,9 +33,13 @@ class SegClasses:
     def digest(self) -> str:
         return hashlib.sha256("\n".join(self.names).encode()).hexdigest()[:12]
 
+    @property
+    def first_pickupable(self) -> int:
+        """The pickupable types' classes are this one and every one after it."""
+        return 1 + len(STRUCTURE) + len(self.furniture)
+
     def is_pickupable(self, cls: np.ndarray | int) -> np.ndarray | bool:
-        first = 1 + len(STRUCTURE) + len(self.furniture)
-        return np.asarray(cls) >= first
+        return np.asarray(cls) >= self.first_pickupable
 
     def of_instance(self, kind: str, type_name: str) -> int:
         """The class of one renderer instance (``sim/house_scene.py``'s Instance kind and type)."""
