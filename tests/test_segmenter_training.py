@@ -68,7 +68,8 @@ def test_a_tiny_segmenter_trains_resumes_and_loads(tiny_data, tmp_path, monkeypa
     assert resumed["curve"] == card["curve"] and resumed["test"] == card["test"]
     assert resumed["weights_sha256"] == card["weights_sha256"]
 
-    model = load_segmenter(tmp_path / "a")
+    model, card_back = load_segmenter(tmp_path / "a")
+    assert card_back["weights_sha256"] == card["weights_sha256"]  # the card comes with it
     with np.load(sorted((tiny_data / "test").glob("*.npz"))[0]) as z:
         labels, probs = predict(model, z["rgb"][:2], z["depth_mm"][:2] / 1000.0)
     assert labels.shape == (2, 112, 112) and labels.dtype == np.uint8  # the network's grid
@@ -108,7 +109,8 @@ def test_a_segmenter_with_a_full_resolution_stem_saves_and_loads(tmp_path):
     torch.manual_seed(0)
     model = Segmenter(7, (4, 4, 8, 8, 8), stem=3).eval()
     save_segmenter(model, tmp_path)
-    back = load_segmenter(tmp_path)
+    back, no_card = load_segmenter(tmp_path)
+    assert no_card == {}
     assert back.config() == {"classes": 7, "widths": [4, 4, 8, 8, 8], "stem": 3}
     rgb, depth = torch.rand(1, 3, 32, 32) * 255, torch.rand(1, 1, 32, 32) * 3
     with torch.inference_mode():

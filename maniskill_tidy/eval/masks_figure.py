@@ -10,7 +10,6 @@ them, ``perception/instances.py``).
 from __future__ import annotations
 
 import colorsys
-import json
 from pathlib import Path
 
 import numpy as np
@@ -65,9 +64,8 @@ def masks_figure(out: Path, segmenter: str, env_id: str = "HeteroTidy-v2",
     from maniskill_tidy.models.segmenter import Runtime, upsample
     from maniskill_tidy.policies import make_team
 
-    runtime = Runtime(load_segmenter(segmenter), 2)
-    card_path = Path(segmenter) / "card.json"
-    card = json.loads(card_path.read_text()) if card_path.is_file() else {}
+    model, card = load_segmenter(segmenter)
+    runtime = Runtime(model, 2)
     classes = seg_classes()
     env = gym.make(env_id, setting="I", dataset=dataset, split=split,
                    obs_mode="rgb+depth+segmentation")  # fmt: skip

@@ -83,30 +83,38 @@ def weights_sha256(folder: Path) -> str:
     return file_sha256(Path(folder) / WEIGHTS)
 
 
-def verify(folder: Path, train_hint: str) -> None:
-    """Refuse a missing, damaged or substituted ``model.pt`` in one line, before any work."""
+def _commands(hints: tuple[str, ...]) -> str:
+    """The commands that (re)make a checkpoint, for a message: "`a`" or "`a` (or `b`)"."""
+    first, *others = hints
+    return f"`{first}`" + "".join(f" (or `{o}`)" for o in others)
+
+
+def verify(folder: Path, *train_hints: str) -> None:
+    """Refuse a missing, damaged or substituted ``model.pt`` in one line, before any work;
+    ``train_hints``: the command that trains it, then any other that also does."""
     path = Path(folder) / WEIGHTS
+    train_hint = _commands(train_hints)
     if not path.is_file():
-        raise CheckpointError(f"{path} not found ({WHERE}); train it with `{train_hint}`")
+        raise CheckpointError(f"{path} not found ({WHERE}); train it with {train_hint}")
     card = Path(folder) / CARD
     expected = json.loads(card.read_text()).get("weights_sha256") if card.is_file() else None
     if expected is None:  # no card to compare with: at least torch must read it
-        _load(path, train_hint)
+        _load(path, *train_hints)
     elif file_sha256(path) != expected:
         raise CheckpointError(
             f"{path}: sha256 differs from its card ({card.name} weights_sha256 "
             f"{expected[:12]}...): the file is damaged or not the trained one; retrain with "
-            f"`{train_hint}` or restore it"
+            f"{train_hint} or restore it"
         )
 
 
-def _load(path: Path, train_hint: str) -> dict:
+def _load(path: Path, *train_hints: str) -> dict:
     try:
         return torch.load(path, weights_only=False)
     except Exception as err:  # torch raises several kinds for a damaged zip
         raise CheckpointError(
             f"{path}: not a readable checkpoint ({type(err).__name__}); expected a file "
-            f"written by `{train_hint}`"
+            f"written by {_commands(train_hints)}"
         ) from None
 
 
@@ -207,12 +215,22 @@ def save_segmenter(model, folder: Path) -> None:
     save(folder, {"config": model.config(), "state": half_state(model)})
 
 
-def load_segmenter(folder: Path):
-    """The pixels track's segmenter (``models/segmenter.py``), in eval mode."""
+def load_segmenter(folder: Path) -> tuple:
+    """The pixels track's segmenter (``models/segmenter.py``, in eval mode) and its card
+    (``{}`` without one); refused in one line when the card names another class table than
+    this code's (the object types changed since it was trained)."""
     from maniskill_tidy.models.segmenter import Segmenter
+    from maniskill_tidy.perception.seg_classes import seg_classes
 
     saved = read(folder, "maniskill-tidy train-segmenter")
+    card_path = Path(folder) / CARD
+    card = json.loads(card_path.read_text()) if card_path.is_file() else {}
+    digest, ours = card.get("config", {}).get("classes"), seg_classes().digest
+    if digest is not None and digest != ours:
+        raise CheckpointError(f"{folder}: trained on another class table ({digest}, this code's "
+                              f"is {ours}): the object types changed; render and train it again "
+                              "(make segmenter-data train-segmenter)")  # fmt: skip
     cfg = saved["config"]
     model = Segmenter(cfg["classes"], tuple(cfg["widths"]), cfg.get("stem", 0))
     model.load_state_dict(float_state(saved["state"]))
-    return model.eval()
+    return model.eval(), card

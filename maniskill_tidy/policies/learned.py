@@ -410,8 +410,8 @@ class LearnedTeam(Team):
         # an oracle acts with another config's model (SA(Oracle): agents/sa.yaml's)
         config = f"{cfg.out}.yaml" if cls.oracle else cls.config_file
         try:
-            verify(cls.model_folder(team), f"maniskill-tidy train {config} --setting {setting}"
-                   "`, or every variant in both settings with `make train-all")  # fmt: skip
+            verify(cls.model_folder(team), f"maniskill-tidy train {config} --setting {setting}",
+                   "make train-all")  # fmt: skip
             verify(resolve(cfg.perception), "maniskill-tidy train perception")
         except CheckpointError as err:
             return str(err)

@@ -23,9 +23,7 @@ in view is aimed at no pixel (the env names the failure, as for an id not in vie
 from __future__ import annotations
 
 import dataclasses
-import json
 import time
-from pathlib import Path
 from typing import ClassVar
 
 import numpy as np
@@ -62,17 +60,10 @@ class Segmenter:
         from maniskill_tidy.models.segmenter import Runtime
 
         if folder not in self._loaded:  # the threads the renderer may use in this process
-            runtime = Runtime(load_segmenter(folder), render_threads())
-            self._loaded[folder] = (runtime, weights_sha256(folder))
-        self.runtime, self.sha256 = self._loaded[folder]
+            model, card = load_segmenter(folder)
+            self._loaded[folder] = (Runtime(model, render_threads()), weights_sha256(folder), card)
+        self.runtime, self.sha256, card = self._loaded[folder]
         # object masks less confident than this are left out (the card's, chosen on val)
-        card_path = Path(folder) / "card.json"
-        card = json.loads(card_path.read_text()) if card_path.is_file() else {}
-        digest = card.get("config", {}).get("classes")
-        if digest is not None and digest != seg_classes().digest:
-            raise ValueError(f"{folder}: trained on another class table ({digest}, this code's is "
-                             f"{seg_classes().digest}): the object types changed; render and "
-                             "train it again (make segmenter-data train-segmenter)")  # fmt: skip
         chosen = card.get("agent_threshold")
         self.threshold = float(chosen["threshold"]) if chosen else 0.0
         # seconds spent per stage and frames seen in this process (``bench --only teams``)

@@ -273,7 +273,7 @@ def train_segmenter(cfg: SegTrainConfig, progress: bool = True) -> dict:
             bar.set_postfix(val_AP50=f"{v['AP50']:.3f}")
     model.load_state_dict(best_state)
     checkpoints.save_segmenter(model, out)
-    model = checkpoints.load_segmenter(out).eval()  # scored as it ships: fp16-rounded weights
+    model = checkpoints.load_segmenter(out)[0]  # scored as it ships: fp16-rounded weights
     test = load_split(data / "test", cfg.limit.get("test"))
     card = {
         "name": out.name,
@@ -310,7 +310,7 @@ def rescore(folder: str | Path, data: str | Path) -> dict:
     if any(hashes[s] != card["config"]["data"][s] for s in hashes):
         raise ValueError(f"{data}: not the frames {folder / 'card.json'} was trained and scored "
                          "on (data hashes differ)")  # fmt: skip
-    model = checkpoints.load_segmenter(folder).eval()
+    model = checkpoints.load_segmenter(folder)[0]
     val = load_split(data / "val", card["config"]["eval_frames"])
     test = load_split(data / "test", card["config"]["limit"].get("test"))
     before = {k: card[k] for k in ("val", "test", "agent_threshold")}

@@ -5,6 +5,11 @@ sigmoid of the two best logits' margin) and with masks under 8 or 20 pixels kept
 head's time per frame in ONNX Runtime, 2 threads, batches of 3 (run it on an idle machine);
 first, which pixels it calls objects and with which type.
 
+Its instances are split from the labels upsampled to the frames' full resolution: the pipeline
+before agents made them on the network's half-resolution grid (`perception/instances.py:
+coarse`), as the research log's figures of this probe were measured. Its AP is therefore not
+the card's (`train-segmenter` scores instances as agents now make them).
+
     .venv/bin/python docs/research/probes/segmenter_confidence.py agents/segmenter-v2 \
         --data data/segmenter/HeteroTidy-v2/val --frames 400
 """
@@ -94,7 +99,7 @@ def main() -> None:
     ap.add_argument("--data", default="data/segmenter/HeteroTidy-v2/val")
     ap.add_argument("--frames", type=int, default=400)
     args = ap.parse_args()
-    model = checkpoints.load_segmenter(Path(args.weights)).eval()
+    model = checkpoints.load_segmenter(Path(args.weights))[0]
     frames = load_split(Path(args.data), args.frames)
     classes = seg_classes()
     pick = [i for i in range(len(classes.names)) if classes.is_pickupable(i)]
