@@ -1,7 +1,7 @@
 """Agents on threads against agents in processes of their own, on the same episode (issue 48).
 
-    python docs/research/probes/agent_processes_ab.py [--policy hangrcom] [--env HeteroTidy-v1] [--rounds 3] \
-        [--phases]
+    python docs/research/probes/agent_processes_ab.py [--policy hangrcom] \
+        [--env HeteroTidy-v1] [--rounds 3] [--phases]
 
 Plays one Setting I test episode ``--rounds`` times each way, in turns (threads, processes,
 threads, ...), after one throwaway episode each way (models load, hosts start): per team step,

@@ -1,6 +1,7 @@
 """What a learned team's step costs besides its models' arithmetic (issue 48).
 
-    TIDY_AGENT_THREADS=1 python docs/research/probes/glue_floor.py [--policy hangrcom] [--env HeteroTidy-v1]
+    TIDY_AGENT_THREADS=1 python docs/research/probes/glue_floor.py [--policy hangrcom] \
+        [--env HeteroTidy-v1]
 
 Plays a Setting I test episode in blocks of team steps, in turns: as it is, and with the
 models' forward passes free (the perception model, F_s, the communication generators, F_a and

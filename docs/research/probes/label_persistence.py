@@ -5,7 +5,8 @@ its own previous sub-task, as CentralComm.'s node does (the teacher's, in traini
 model card's validation figures), can reach it without choosing anything (docs/models.md, "How each
 differs from the paper's description").
 
-    .venv/bin/python docs/research/probes/label_persistence.py data/demos_detection_3tasks/setting_I/val
+    .venv/bin/python docs/research/probes/label_persistence.py \
+        data/demos_detection_3tasks/setting_I/val
 """
 
 from __future__ import annotations

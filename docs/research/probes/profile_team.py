@@ -1,7 +1,7 @@
 """Where a team's episode goes: cProfile of a few Setting I test episodes (issue 48).
 
-    python docs/research/probes/profile_team.py hangrcom --episodes 2 [--env HeteroTidy-v2] [--top 40] \
-        [--callers REGEX]
+    python docs/research/probes/profile_team.py hangrcom --episodes 2 [--env HeteroTidy-v2] \
+        [--top 40] [--callers REGEX]
 
 Prints the functions with the most time of their own and the most cumulative time, and the
 split between the env (reset, step) and the team (observe, send, act); ``--callers`` adds who
