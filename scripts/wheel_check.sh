@@ -32,7 +32,11 @@ for want in ("memory.yaml", "memory/setting_I/model.pt", "hangrcom/setting_II/mo
     assert f"maniskill_tidy/agents/{want}" in names, f"the wheel has no agents/{want}"
 stray = [n for n in names if "/agents/experiments/" in n or n.endswith("checkpoint.pt")]
 assert not stray, f"the wheel carries {stray[:3]}"
-print("[wheel-check] the shipped agents' configs and weights are in the wheel, experiments not")
+agents = sum(i.file_size for i in zipfile.ZipFile(sys.argv[1]).infolist()
+             if i.filename.startswith("maniskill_tidy/agents/"))
+assert agents < 60e6, f"the wheel's agents/ holds {agents / 1e6:.0f} MB (docs/models.md: ~40)"
+print(f"[wheel-check] the shipped agents' configs and weights are in the wheel ({agents / 1e6:.0f} "
+      "MB), experiments not")
 PY
 python3 -m venv "$OUT/venv"
 echo "[wheel-check] installing $(basename "$OUT"/dist/*.whl) into a fresh venv"
