@@ -1,0 +1,88 @@
+"""Where a segmenter's object masks go wrong. Its mask AP50 on train frames beside val frames
+(does it underfit or overfit?), then every object mask it makes on val frames, as agents make
+them (on the network's grid, 20 px or more), sorted by what lies under it: a match (IoU >= 0.5,
+right type), the wrong type, a part of an object (IoU 0.1-0.5), another object, or the structure
+class or furniture most of its pixels show; with the share of each above the card's agent
+threshold and their median size.
+
+    .venv/bin/python docs/research/probes/segmenter_errors.py agents/segmenter-v2 \\
+        --data data/segmenter/HeteroTidy-v2 --frames 400
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+
+from maniskill_tidy.envs.actions import MIN_PIXELS
+from maniskill_tidy.models import checkpoints
+from maniskill_tidy.models.segmenter import predict
+from maniskill_tidy.perception.instances import coarse, split_instances
+from maniskill_tidy.perception.seg_classes import seg_classes
+from maniskill_tidy.training.segmenter_trainer import evaluate, load_split, truth_masks
+
+
+def what_lies_under(mask, truth, cls, classes) -> str:
+    best, best_type = 0.0, None
+    for t in truth:
+        iou = (mask.mask & t.mask).sum() / (mask.mask | t.mask).sum()
+        if iou > best:
+            best, best_type = iou, t.cls
+    if best >= 0.5:
+        return "match" if best_type == mask.cls else "wrong type"
+    if best >= 0.1:
+        return "part of an object"
+    under = cls[mask.mask]
+    if classes.is_pickupable(under).mean() > 0.5:
+        return "another object"
+    name = classes.names[np.bincount(under).argmax()]
+    return "furniture" if name.startswith("furniture:") else name
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("weights")
+    ap.add_argument("--data", default="data/segmenter/HeteroTidy-v2")
+    ap.add_argument("--frames", type=int, default=400)
+    args = ap.parse_args()
+    model, card = checkpoints.load_segmenter(Path(args.weights))
+    threshold = card.get("agent_threshold", {}).get("threshold", 0.0)
+    for split in ("train", "val"):
+        s = evaluate(model, load_split(Path(args.data) / split, args.frames))
+        print(
+            f"{split}: mask AP50 {s['AP50']:.3f}, AP {s['AP']:.3f}, small {s['AP_small']:.3f}; "
+            f"pixel accuracy on objects {s['pixel_accuracy_pickupable']:.2f}, overall "
+            f"{s['pixel_accuracy']:.2f}; {s['predicted']} masks for {s['truth']} objects"
+        )
+    classes = seg_classes()
+    pickupable = [i for i in range(len(classes.names)) if classes.is_pickupable(i)]
+    frames = load_split(Path(args.data) / "val", args.frames)
+    depth = frames["depth_mm"].astype(np.float32) / 1000.0
+    labels, probs = predict(model, frames["rgb"], depth)
+    step = depth.shape[1] // labels.shape[1]
+    kinds: Counter = Counter()
+    scores: dict[str, list] = {}
+    areas: dict[str, list] = {}
+    for k in range(len(labels)):
+        truth = truth_masks(frames["cls"][k], frames["instance"][k], pickupable)
+        masks = split_instances(labels[k], coarse(depth[k], step), pickupable, probs[k],
+                                -(-MIN_PIXELS // step**2))  # fmt: skip
+        for m in (m.upscaled(step) for m in masks):
+            kind = what_lies_under(m, truth, frames["cls"][k], classes)
+            kinds[kind] += 1
+            scores.setdefault(kind, []).append(m.score)
+            areas.setdefault(kind, []).append(m.area)
+    total = sum(kinds.values())
+    print(f"val object masks: {total}; agent threshold {threshold:.3f}")
+    for kind, n in kinds.most_common():
+        s = np.array(scores[kind])
+        kept = int((s >= threshold).sum())
+        print(f"  {kind:18s} {n:5d} ({n / total:.2f}); kept by agents {kept:4d}; median "
+              f"{np.median(areas[kind]):.0f} px, confidence {np.median(s):.2f}")  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()
