@@ -17,7 +17,7 @@ import torch
 from maniskill_tidy.models.segmenter import LabelHead, Runtime, Segmenter
 from maniskill_tidy.perception.seg_classes import seg_classes
 
-WIDTHS = ((16, 24, 48, 64, 96), (12, 16, 32, 48, 64), (8, 16, 24, 32, 48))
+WIDTHS = ((16, 24, 48, 64, 96), (16, 24, 32, 48, 64), (12, 16, 32, 48, 64), (8, 16, 24, 32, 48))
 
 
 def per_call(fn, repeats: int) -> float:

@@ -245,12 +245,12 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     ts.add_argument("--epochs", type=int, default=16)
     ts.add_argument("--batch", type=int, default=16)
     ts.add_argument("--crop", type=int, default=128, help="training crops, px (frames are 224)")
-    ts.add_argument("--widths", help="channels of the five levels (12,16,32,48,64)")
+    ts.add_argument("--widths", help="channels of the five levels (16,24,32,48,64)")
     ts.add_argument("--seed", type=int, default=0)
     ts.add_argument("--stem", type=int, default=0,
                     help="channels of a full-resolution convolution before the first stride "
                     "(0: none)")  # fmt: skip
-    ts.add_argument("--weight-power", type=float, default=0.5,
+    ts.add_argument("--weight-power", type=float, default=0.75,
                     help="class weights 1 / frequency ** this (0: unweighted)")  # fmt: skip
     ts.add_argument("--objectness", type=float, default=0.0,
                     help="weight of a Dice loss on which pixels are pickupable objects beside "

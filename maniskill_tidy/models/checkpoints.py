@@ -32,6 +32,7 @@ from maniskill_tidy.models.qmix import QmixTeamModel
 
 if TYPE_CHECKING:
     from maniskill_tidy.models.perception import PerceptionModel
+    from maniskill_tidy.models.segmenter import Segmenter
 
 WEIGHTS = "model.pt"
 CARD = "card.json"
@@ -84,15 +85,17 @@ def weights_sha256(folder: Path) -> str:
 
 
 def _commands(hints: tuple[str, ...]) -> str:
-    """The commands that (re)make a checkpoint, for a message: "`a`" or "`a` (or `b`)"."""
+    """One line naming every command a user may run instead ("`a`", "`a` (or `b`)"),
+    whichever of them the caller's checkpoint comes from."""
     first, *others = hints
     return f"`{first}`" + "".join(f" (or `{o}`)" for o in others)
 
 
-def verify(folder: Path, *train_hints: str) -> None:
+def verify(folder: Path, train_hint: str, *others: str) -> None:
     """Refuse a missing, damaged or substituted ``model.pt`` in one line, before any work;
-    ``train_hints``: the command that trains it, then any other that also does."""
+    ``train_hint``: the command that trains it, ``others``: any other that also does."""
     path = Path(folder) / WEIGHTS
+    train_hints = (train_hint, *others)
     train_hint = _commands(train_hints)
     if not path.is_file():
         raise CheckpointError(f"{path} not found ({WHERE}); train it with {train_hint}")
@@ -215,7 +218,7 @@ def save_segmenter(model, folder: Path) -> None:
     save(folder, {"config": model.config(), "state": half_state(model)})
 
 
-def load_segmenter(folder: Path) -> tuple:
+def load_segmenter(folder: Path) -> tuple[Segmenter, dict]:
     """The pixels track's segmenter (``models/segmenter.py``, in eval mode) and its card
     (``{}`` without one); refused in one line when the card names another class table than
     this code's (the object types changed since it was trained)."""

@@ -39,7 +39,7 @@ class Segmenter(nn.Module):
     """RGB (uint8-valued floats) and depth (metres) -> class logits at half resolution."""
 
     def __init__(
-        self, classes: int, widths: tuple[int, ...] = (12, 16, 32, 48, 64), stem: int = 0
+        self, classes: int, widths: tuple[int, ...] = (16, 24, 32, 48, 64), stem: int = 0
     ) -> None:
         super().__init__()
         self.classes, self.widths, self.stem_width = classes, tuple(widths), stem

@@ -35,7 +35,8 @@ class SegClasses:
 
     @property
     def first_pickupable(self) -> int:
-        """The pickupable types' classes are this one and every one after it."""
+        """The pickupable types' classes are this one and every one after it, so that a loss
+        or a probe takes the objects' logits as one slice (``logits[:, first:]``)."""
         return 1 + len(STRUCTURE) + len(self.furniture)
 
     def is_pickupable(self, cls: np.ndarray | int) -> np.ndarray | bool:
