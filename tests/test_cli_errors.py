@@ -287,7 +287,8 @@ def test_eval_refuses_a_damaged_checkpoint_before_writing(tmp_path, card):
     out = tmp_path / "out"
     p = cli("eval", "--policy", str(config), "--setting", "I", "--episodes", "1", "--out", str(out))
     words = ("sha256", "retrain") if card == "with" else ("not a readable checkpoint",)
-    one_line_error(p, str(weights), *words)
+    # both commands that make it: this variant's, and the one that trains every variant
+    one_line_error(p, str(weights), *words, "--setting I` (or `make train-all`)")
     assert not out.exists()
 
 

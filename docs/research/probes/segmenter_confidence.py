@@ -5,10 +5,10 @@ sigmoid of the two best logits' margin) and with masks under 8 or 20 pixels kept
 head's time per frame in ONNX Runtime, 2 threads, batches of 3 (run it on an idle machine);
 first, which pixels it calls objects and with which type.
 
-Its instances are split from the labels upsampled to the frames' full resolution: the pipeline
-before agents made them on the network's half-resolution grid (`perception/instances.py:
-coarse`), as the research log's figures of this probe were measured. Its AP is therefore not
-the card's (`train-segmenter` scores instances as agents now make them).
+Its instances are split from the labels upsampled to the frames' full resolution, as the
+pipeline did before agents made them on the network's half-resolution grid
+(`perception/instances.py: coarse`); the research log's figures of this probe were measured so.
+Its AP is therefore not the card's (`train-segmenter` scores instances as agents now make them).
 
     .venv/bin/python docs/research/probes/segmenter_confidence.py agents/segmenter-v2 \
         --data data/segmenter/HeteroTidy-v2/val --frames 400

@@ -2,8 +2,8 @@
 (does it underfit or overfit?), then every object mask it makes on val frames, as agents make
 them (on the network's grid, 20 px or more), sorted by what lies under it: a match (IoU >= 0.5,
 right type), the wrong type, a part of an object (IoU 0.1-0.5), another object, or the structure
-class or furniture most of its pixels show; with the share of each above the card's agent
-threshold and their median size.
+class or furniture most of its pixels show; with how many of each agents keep (the card's agent
+threshold) and their median size and confidence.
 
     .venv/bin/python docs/research/probes/segmenter_errors.py agents/segmenter-v2 \\
         --data data/segmenter/HeteroTidy-v2 --frames 400
