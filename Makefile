@@ -2,7 +2,7 @@
 PY := .venv/bin/python
 DEMO_DIR := out/demo
 
-.PHONY: segmenter-data train-segmenter setup test test-slow demo bench assets leaderboard leaderboard-v2 leaderboard-pixels train-perception-v2 train train-all train-memory lint docs wheel-check clean
+.PHONY: segmenter-data train-segmenter segmenter-cross-look setup test test-slow demo bench assets leaderboard leaderboard-v2 leaderboard-pixels train-perception-v2 train train-all train-memory lint docs wheel-check clean
 
 setup:
 	@bash scripts/setup.sh
@@ -125,6 +125,11 @@ segmenter-data: setup
 train-segmenter: segmenter-data
 	$(PY) -m maniskill_tidy.cli train-segmenter --data $(SEGMENTER_DATA)/HeteroTidy-v2 --out agents/segmenter-v2
 	$(PY) -m maniskill_tidy.cli train-segmenter --data $(SEGMENTER_DATA)/HeteroTidy-v1 --out agents/segmenter-v1
+
+# Each look's segmenter on each look's test frames: eval/segmenter_cross_look.{json,md}.
+segmenter-cross-look: setup
+	$(PY) -m maniskill_tidy.cli segmenter-cross-look --segmenters agents/segmenter-v1 agents/segmenter-v2 \
+	  --data $(SEGMENTER_DATA) --out eval/segmenter_cross_look
 
 # The paper's learned model, on CPU. Perception (issue 12): render the views of the 120-house
 # dataset's houses (resumable per house), train every stage with and without the knowledge

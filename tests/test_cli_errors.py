@@ -318,3 +318,16 @@ def test_a_bad_agent_processes_knob_is_refused_before_anything_is_written(tmp_pa
     p = cli("eval", "--policy", "random", "--out", str(out), env={"TIDY_AGENT_PROCESSES": "on"})
     one_line_error(p, "TIDY_AGENT_PROCESSES='on'", "expected 0 or 1")
     assert not out.exists()
+
+
+def test_the_cross_look_table_refuses_missing_frames_and_weights(tmp_path):
+    out = tmp_path / "table"
+    p = cli("segmenter-cross-look", "--segmenters", str(tmp_path / "none"), "--data",
+            str(tmp_path), "--out", str(out))  # fmt: skip
+    one_line_error(p, str(tmp_path), "no <look>/test/manifest.json", "make segmenter-data")
+    (tmp_path / "HeteroTidy-v2" / "test").mkdir(parents=True)
+    (tmp_path / "HeteroTidy-v2" / "test" / "manifest.json").write_text("{}")
+    p = cli("segmenter-cross-look", "--segmenters", str(tmp_path / "none"), "--data",
+            str(tmp_path), "--out", str(out))  # fmt: skip
+    one_line_error(p, "model.pt not found", "train-segmenter")
+    assert not out.with_suffix(".json").exists() and not out.with_suffix(".md").exists()

@@ -141,3 +141,24 @@ def test_the_objectness_loss_scores_which_pixels_are_objects_not_their_type():
     assert right < 0.01 and other_type < 0.01  # the type is the cross-entropy's business
     assert missed > 0.7  # a missed 4-pixel object costs most of the loss, beside 12 background
     assert 0.3 < everywhere < 0.9  # objects everywhere: all found, three quarters false
+
+
+def test_the_cross_look_table_scores_each_segmenter_on_each_look(tiny_data, tmp_path):
+    """Its diagonal is the card's test score; a look's folder without frames is refused."""
+    import shutil
+
+    from maniskill_tidy.training import segmenter_trainer as st
+    from maniskill_tidy.training.segmenter_cross_look import cross_look, write_table
+
+    card = st.train_segmenter(_cfg(tiny_data, tmp_path / "seg"), progress=False)
+    data = tmp_path / "looks"
+    shutil.copytree(tiny_data / "test", data / "HeteroTidy-v1" / "test")
+    with pytest.raises(FileNotFoundError, match="no <look>/val/manifest.json"):
+        cross_look([tmp_path / "seg"], data, "val", progress=False)
+    rows = cross_look([tmp_path / "seg"], data, progress=False)
+    assert [(r["trained_on"], r["tested_on"]) for r in rows] == [("HeteroTidy-v1",) * 2]
+    assert all(rows[0][k] == card["test"][k] for k in ("AP50", "AP", "pixel_accuracy_pickupable"))
+    assert rows[0]["weights_sha256"] == card["weights_sha256"]
+    js, md = write_table(rows, tmp_path / "table" / "cross")
+    assert json.loads(js.read_text()) == rows
+    assert "| HeteroTidy-v1 | HeteroTidy-v1 |" in md.read_text()

@@ -111,6 +111,20 @@ def _train_segmenter(args: argparse.Namespace) -> int:
     return 0
 
 
+def _segmenter_cross_look(args: argparse.Namespace) -> int:
+    from maniskill_tidy.training.segmenter_cross_look import cross_look, write_table
+
+    if not args.segmenters:
+        raise ValueError("--segmenters: expected one or more segmenter folders")
+    from maniskill_tidy.common.agent_files import resolve
+
+    rows = cross_look([resolve(s) for s in args.segmenters], Path(args.data), args.split)
+    js, md = write_table(rows, Path(args.out))
+    print(md.read_text(), end="")
+    print(f"wrote {js} and {md}")
+    return 0
+
+
 def _train(args: argparse.Namespace) -> int:
     from maniskill_tidy.policies.agent_config import trainer_of
     from maniskill_tidy.training.qmix_trainer import train_qmix
@@ -259,6 +273,19 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                     help="score the trained segmenter in --out again on --data's val and test "
                     "frames (its card's val, test and agent threshold)")  # fmt: skip
     ts.set_defaults(func=_train_segmenter)
+
+    cl = sub.add_parser(
+        "segmenter-cross-look",
+        help="every segmenter scored on every look's test frames (the cross-look table)",
+    )
+    cl.add_argument(
+        "--segmenters", nargs="+", default=["agents/segmenter-v1", "agents/segmenter-v2"]
+    )
+    cl.add_argument("--data", default="data/segmenter", help="segmenter-data's looks' folders")
+    cl.add_argument("--split", default="test", choices=["val", "test"])
+    cl.add_argument("--out", default="eval/segmenter_cross_look",
+                    help="writes OUT.json and OUT.md")  # fmt: skip
+    cl.set_defaults(func=_segmenter_cross_look)
 
     tr = sub.add_parser(
         "train", help="train learned modules: the paper's, QMIX, the object-memory team (CPU)"
