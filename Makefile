@@ -114,7 +114,7 @@ train-perception-v2: setup
 # looks, from the expert, the camera-only heuristic team and random look-arounds (Setting I:
 # cameras at 0.22, 0.9, 1.0 m), with the renderer's classes and instances as labels; one shard
 # per house (resumable), train / val / test by house. Measured with 2 workers on an idle
-# machine: 16 min for v2's 120 houses (19,509 frames, 1.3 GB).
+# machine: 16 min for v2's 120 houses (19,509 frames, 1.3 GB), 8.5 min for v1's (19,485, 168 MB).
 SEGMENTER_DATA ?= data/segmenter
 segmenter-data: setup
 	test -f $(DATA120)/manifest.json || $(PY) -m maniskill_tidy.cli generate --houses 120 --seed 0 --workers 2 --out $(DATA120)
