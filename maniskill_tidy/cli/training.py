@@ -112,11 +112,8 @@ def _train_segmenter(args: argparse.Namespace) -> int:
 
 
 def _segmenter_cross_look(args: argparse.Namespace) -> int:
-    from maniskill_tidy.training.segmenter_cross_look import cross_look, write_table
-
-    if not args.segmenters:
-        raise ValueError("--segmenters: expected one or more segmenter folders")
     from maniskill_tidy.common.agent_files import resolve
+    from maniskill_tidy.training.segmenter_cross_look import cross_look, write_table
 
     rows = cross_look([resolve(s) for s in args.segmenters], Path(args.data), args.split)
     js, md = write_table(rows, Path(args.out))

@@ -96,9 +96,9 @@ def verify(folder: Path, train_hint: str, *others: str) -> None:
     ``train_hint``: the command that trains it, ``others``: any other that also does."""
     path = Path(folder) / WEIGHTS
     train_hints = (train_hint, *others)
-    train_hint = _commands(train_hints)
+    hint_text = _commands(train_hints)
     if not path.is_file():
-        raise CheckpointError(f"{path} not found ({WHERE}); train it with {train_hint}")
+        raise CheckpointError(f"{path} not found ({WHERE}); train it with {hint_text}")
     card = Path(folder) / CARD
     expected = json.loads(card.read_text()).get("weights_sha256") if card.is_file() else None
     if expected is None:  # no card to compare with: at least torch must read it
@@ -107,7 +107,7 @@ def verify(folder: Path, train_hint: str, *others: str) -> None:
         raise CheckpointError(
             f"{path}: sha256 differs from its card ({card.name} weights_sha256 "
             f"{expected[:12]}...): the file is damaged or not the trained one; retrain with "
-            f"{train_hint} or restore it"
+            f"{hint_text} or restore it"
         )
 
 
