@@ -133,11 +133,19 @@ def main(argv: list[str] | None = None) -> int:
         "pixels: the pixels-track rows of heuristic-none and memory)",
     )  # fmt: skip
     parser.add_argument(
+        "--segmenter", default="learned", metavar="DIR",
+        help="teams bench: the pixels rows through this segmenter's folder (default: the "
+        "look's shipped one, agents/segmenter-v1 or -v2)",
+    )  # fmt: skip
+    parser.add_argument(
         "--procthor",
         default=str(SAMPLE),
         help="ProcTHOR house file for the import row (default: the 20 sample houses of tests/data)",
     )
     args = parser.parse_args(argv)
+    if args.segmenter != "learned" and not (Path(args.segmenter) / "model.pt").is_file():
+        parser.error(f"--segmenter: no {Path(args.segmenter) / 'model.pt'}; expected a "
+                     "segmenter's folder (agents/segmenter-v2) or `learned`")  # fmt: skip
     if args.only in (None, "eval"):
         from maniskill_tidy.eval.benchmark import bench_eval, report
 
@@ -167,7 +175,7 @@ def main(argv: list[str] | None = None) -> int:
         teams, looks, skip, data = args.teams or TEAMS, args.looks, args.skip, args.eval_dataset
         jobs = [(team, v, "ground-truth") for v in looks for team in teams]
         if "pixels" not in skip:  # where the look's segmenter is trained
-            jobs += pixels_jobs([t for t in teams if t in PIXELS_TEAMS], looks)
+            jobs += pixels_jobs([t for t in teams if t in PIXELS_TEAMS], looks, args.segmenter)
         rows = [bench_team(team, dataset=data, env_id=v, segmentation=seg)
                 for team, v, seg in tqdm(jobs, desc="teams bench", unit="row")]  # fmt: skip
         workers = [] if "workers" in skip else [bench_workers(t, dataset=data) for t in teams]

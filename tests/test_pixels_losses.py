@@ -62,6 +62,7 @@ def test_fates_tracks_merges_and_false_pickups():
     assert fates["Cup"]["fate"] == "never in view"
     assert fates["Book"]["fate"] == "placed"
     assert out["false_pickups"] == 1
+    assert fates["Apple"]["largest_view"] == 100 and fates["Cup"]["largest_view"] == 0
 
     summary = summarise([{"pixels": out}, {"success": True}])  # ground-truth records: no key
     assert summary["objects"] == 4 and summary["episodes"] == 2
@@ -69,6 +70,7 @@ def test_fates_tracks_merges_and_false_pickups():
     assert list(summary["fates"]) == list(FATES)
     assert summary["split_into_tracks"] == 1 and summary["merged_with_another"] == 1
     assert summary["by_type"]["Mug"] == {"wrong type": 1}
+    assert summary["median_largest_view"]["wrong type"] == 100
 
 
 def test_an_object_in_view_without_a_mask_is_never_detected():

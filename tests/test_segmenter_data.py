@@ -73,9 +73,50 @@ def test_a_rerun_resumes_and_names_the_same_data(tiny, tmp_path):
 @pytest.mark.slow
 def test_the_same_dataset_renders_the_same_frames(tiny, tmp_path):
     cfg, _, manifest = tiny
-    assert build_segmenter_data(cfg, tmp_path / "b", progress=False)["data_hash"] == (
-        manifest["data_hash"]
+    assert (
+        build_segmenter_data(cfg, tmp_path / "b", progress=False)["data_hash"]
+        == (manifest["data_hash"])
     )
+
+
+def test_instances_are_the_components_of_a_pixel_graph():
+    """The one-pass labelling against scipy's graph components: 4-neighbours of one asked-for
+    class joined unless the depth jumps, on random labels and depths; scores are mean
+    probabilities, instances come ordered by class."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    from maniskill_tidy.perception.instances import DEPTH_JUMP, split_instances
+
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        labels = rng.integers(0, 4, (30, 40)).astype(np.uint8)
+        labels[rng.random(labels.shape) < 0.5] = 2  # large parts of class 2
+        depth = rng.choice([1.0, 1.02, 2.0, 3.5], labels.shape).astype(np.float32)
+        prob = rng.random(labels.shape).astype(np.float32)
+        asked = [1, 2]
+        h, w = labels.shape
+        idx = np.arange(h * w).reshape(h, w)
+        a, b = [], []
+        for x, y in ((idx[:, :-1], idx[:, 1:]), (idx[:-1], idx[1:])):
+            la, lb = labels.ravel()[x], labels.ravel()[y]
+            da, db = depth.ravel()[x], depth.ravel()[y]
+            ok = (la == lb) & np.isin(la, asked)
+            ok &= np.abs(da - db) <= DEPTH_JUMP + 0.05 * np.minimum(da, db)
+            a.append(x[ok]), b.append(y[ok])
+        graph = coo_matrix((np.ones(sum(len(v) for v in a)), (np.concatenate(a),
+                            np.concatenate(b))), shape=(h * w, h * w))  # fmt: skip
+        _, comp = connected_components(graph, directed=False)
+        comp = comp.reshape(h, w)
+        want = set()
+        for c in np.unique(comp[np.isin(labels, asked)]):
+            m = (comp == c) & np.isin(labels, asked)
+            if m.sum() >= 3:
+                want.add((int(labels[m][0]), m.tobytes(), round(float(prob[m].mean()), 5)))
+        got = split_instances(labels, depth, asked, prob, min_pixels=3)
+        assert {(g.cls, g.mask.tobytes(), round(g.score, 5)) for g in got} == want
+        assert [g.cls for g in got] == sorted(g.cls for g in got) and len(got) == len(want)
+        assert all(g.mask[g.window].sum() == g.mask.sum() for g in got)
 
 
 def test_instances_split_at_depth_jumps_and_score_a_perfect_prediction_at_ap_one(tiny):
@@ -89,9 +130,9 @@ def test_instances_split_at_depth_jumps_and_score_a_perfect_prediction_at_ap_one
     depth[10:20, 5:20], depth[10:20, 20:35] = 1.0, 2.0
     parts = split_instances(labels, depth, [7])
     assert sorted(p.area for p in parts) == [150, 150] and {p.cls for p in parts} == {7}
-    # a class not joined keeps its pixels on depth edges out: its outline against the floor
-    # behind it and against the other box, one pixel all round (10 x 15 -> 8 x 13)
-    assert sorted(p.area for p in split_instances(labels, depth, [7], joined=[])) == [104, 104]
+    # below min_pixels: left out; a class not asked for: no instance
+    assert split_instances(labels, depth, [7], min_pixels=151) == []
+    assert split_instances(labels, depth, [3]) == []
     assert all(p.mask[p.window].any() and not p.mask[:, :5].any() for p in parts)
     depth[10:20, 20:35] = 1.02  # the same surface: one instance
     assert [p.area for p in split_instances(labels, depth, [7])] == [300]

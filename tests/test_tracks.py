@@ -8,7 +8,12 @@ import pytest
 
 from maniskill_tidy.perception.instances import Mask2D, coarse
 from maniskill_tidy.perception.seg_classes import seg_classes
-from maniskill_tidy.perception.tracks import Tracker, coarse_intrinsics, mask_position
+from maniskill_tidy.perception.tracks import (
+    Tracker,
+    coarse_intrinsics,
+    mask_position,
+    mask_positions,
+)
 
 K = np.array([[100.0, 0, 50], [0, 100.0, 50], [0, 0, 1]], dtype=np.float32)
 
@@ -18,6 +23,11 @@ def camera_at(x: float) -> np.ndarray:
     ext = np.eye(4, dtype=np.float32)
     ext[0, 3] = -x
     return ext
+
+
+def located(masks, depth, intrinsics, extrinsics) -> list:
+    """Masks with their positions, each on its own (these synthetic masks may overlap)."""
+    return [(m, mask_position(m, depth, intrinsics, extrinsics)) for m in masks]
 
 
 def box(r0, r1, c0, c1) -> np.ndarray:
@@ -33,13 +43,13 @@ def test_masks_become_tracks_by_class_and_position():
     assert np.allclose(p, [0.0, 0.0, 2.0], atol=1e-3)
     tracker = Tracker()
     left, right = Mask2D(7, box(40, 60, 10, 20), 1.0), Mask2D(7, box(40, 60, 80, 90), 1.0)
-    first = tracker.update([left, right], depth, K, camera_at(0.0), 0)
-    assert [t.id for _, t in first] == [1, 2]
+    first = tracker.update(located([left, right], depth, K, camera_at(0.0)), 0)
+    assert [t.id for _, _, t in first] == [1, 2]
     # the camera moved 0.3 m to the right: the same two objects, further left in the frame
     moved = [Mask2D(7, box(40, 60, 65, 75), 1.0), Mask2D(7, box(40, 60, 0, 10), 1.0),
              Mask2D(9, box(40, 60, 65, 75), 1.0)]  # fmt: skip
-    again = tracker.update(moved, depth, K, camera_at(0.3), 1)
-    assert [t.id for _, t in again] == [2, 1, 3]  # another class at the same place: new track
+    again = tracker.update(located(moved, depth, K, camera_at(0.3)), 1)
+    assert [t.id for _, _, t in again] == [2, 1, 3]  # another class at the same place: new track
     assert tracker.tracks[2].sightings == 2 and tracker.tracks[3].cls == 9
 
 
@@ -71,9 +81,9 @@ def test_tracks_of_true_masks_follow_the_renderers_instances(render):
                         masks.append(Mask2D(int(cls[m][0]), m, 1.0))
                         truths.append(int(i))
                 depth = render["depth_mm"][k].astype(np.float32) / 1000
-                pairs = tracker.update(masks, depth, render["intrinsics"][k],
-                                       render["extrinsics"][k], int(render["t"][k]))  # fmt: skip
-                for (_, track), truth in zip(pairs, truths, strict=True):
+                seen = located(masks, depth, render["intrinsics"][k], render["extrinsics"][k])
+                pairs = tracker.update(seen, int(render["t"][k]))
+                for (_, _, track), truth in zip(pairs, truths, strict=True):
                     track_to_truth.setdefault((team, agent, track.id), []).append(truth)
                     truth_to_tracks.setdefault(truth, set()).add((team, agent, track.id))
     sightings = sum(len(v) for v in track_to_truth.values())
@@ -98,20 +108,23 @@ def test_a_track_keeps_the_type_most_of_its_sightings_vote_for():
     tracker = Tracker()
     here = box(40, 60, 40, 60)
     for step, (cls, score) in enumerate([(mug, 0.9), (cup, 0.5), (mug, 0.8)]):
-        (_, track), = tracker.update([Mask2D(cls, here, score)], depth, K, camera_at(0.0), step)
+        seen = located([Mask2D(cls, here, score)], depth, K, camera_at(0.0))
+        ((_, _, track),) = tracker.update(seen, step)
     assert len(tracker.tracks) == 1 and track.cls == mug and track.sightings == 3
     public = SimpleNamespace(house=SimpleNamespace(furniture=[]))
     table = LabelTable(public)
     first = table.object_id(track)
     assert table.instances[first].type == "Mug"
     for step in range(3, 7):  # seen as a cup from now on: the votes turn
-        tracker.update([Mask2D(cup, here, 0.9)], depth, K, camera_at(0.0), step)
+        tracker.update(located([Mask2D(cup, here, 0.9)], depth, K, camera_at(0.0)), step)
     assert len(tracker.tracks) == 1 and track.cls == cup
     second = table.object_id(track)
     assert table.instances[second].type == "Cup" and table.object_id(track) == second
     # another type 0.2 m away is another object: beyond RADIUS less the penalty
     aside = box(40, 60, 50, 70)  # 10 px at 2 m: 0.2 m
-    (_, other), = tracker.update([Mask2D(mug, aside, 0.9)], depth, K, camera_at(0.0), 7)
+    ((_, _, other),) = tracker.update(
+        located([Mask2D(mug, aside, 0.9)], depth, K, camera_at(0.0)), 7
+    )
     assert other.id != track.id
 
 
@@ -130,6 +143,22 @@ def test_a_mask_on_the_segmenters_grid_lies_where_its_full_pixels_do(grid):
         full[r * grid, c * grid] = True
         assert np.allclose(mask_position(cell, small, Kg, E), mask_position(full, depth, K, E))
     assert not np.allclose(mask_position(cell, small, K, E), mask_position(full, depth, K, E))
+
+
+def test_positions_of_a_frames_masks_are_each_masks_own():
+    """The whole frame back-projected once gives each mask the median of its own pixels with a
+    depth, as one mask at a time would, and None to a mask with no depth."""
+    rng = np.random.default_rng(1)
+    depth = rng.uniform(0.5, 4.0, (100, 100)).astype(np.float32)
+    depth[70:, :] = 0  # no depth here
+    masks = [Mask2D(7, box(10, 30, 5, 25), 1.0, (slice(10, 30), slice(5, 25))),
+             Mask2D(8, box(60, 80, 40, 90), 1.0), Mask2D(9, box(75, 90, 0, 10), 1.0)]  # fmt: skip
+    got = mask_positions(masks, depth, K, camera_at(0.7))
+    for m, p in zip(masks[:2], got, strict=False):
+        assert np.allclose(p, mask_position(m.mask, depth, K, camera_at(0.7)))
+    assert not np.allclose(got[0], got[1]) and got[2] is None
+    with pytest.raises(ValueError, match="overlaps"):  # one pixel, two owners: refused
+        mask_positions([masks[0], masks[0]], depth, K, camera_at(0.7))
 
 
 def test_an_upscaled_mask_covers_the_blocks_of_its_cells():

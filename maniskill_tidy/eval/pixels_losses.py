@@ -14,6 +14,9 @@ A misplaced object ends in the first of these that holds:
 - ``detected, not picked``: a mask of its type covered it, and no agent picked it up;
 - ``picked, not placed`` and ``placed``.
 
+Per object also the most pixels it covered in one agent frame (``largest_view``): an object
+never detected though seen large is the segmenter's loss, one only seen far off the team's.
+
 Per object also: how many of an agent's tracks (slots) it was seen as (``tracks`` > 1: one
 object split into several), and whether a slot that covered it also covered another object,
 misplaced or not, with a quarter of its pixels (``merged``). Per episode: ``false_pickups``,
@@ -50,6 +53,7 @@ class PixelsLosses:
         self.objects = {seg: i.id for seg, i in env.instances.items() if i.kind == "object"}
         self.seg_of = {oid: seg for seg, oid in self.objects.items()}
         self.in_view: set[str] = set()
+        self.largest: dict[str, int] = defaultdict(int)  # object -> most pixels in one frame
         self.matched: dict[str, set[bool]] = defaultdict(set)  # object -> {type right?}
         self.slots: dict[str, set] = defaultdict(set)  # object -> {(agent, slot)}
         self.covers: dict[tuple, set[str]] = defaultdict(set)  # (agent, slot) -> objects
@@ -77,6 +81,7 @@ class PixelsLosses:
                 if area < MIN_PIXELS:
                     continue
                 self.in_view.add(oid)
+                self.largest[oid] = max(self.largest[oid], area)
                 ids, counts = np.unique(seg[mask], return_counts=True)
                 for sid, inter in zip(ids.tolist(), counts.tolist(), strict=True):
                     inst = agent.table.instances.get(sid)
@@ -119,7 +124,8 @@ class PixelsLosses:
                 fate = "never in view"
             merged = any(len(self.covers[s]) > 1 for s in self.slots[oid])
             objects.append({"type": self.type_of[oid], "fate": fate,
-                            "tracks": len(self.slots[oid]), "merged": merged})  # fmt: skip
+                            "tracks": len(self.slots[oid]), "merged": merged,
+                            "largest_view": self.largest[oid]})  # fmt: skip
         return {"objects": objects, "false_pickups": self.false_pickups}
 
 
@@ -128,6 +134,7 @@ def summarise(records: list[dict]) -> dict:
     fates: Counter = Counter()
     by_type: dict[str, Counter] = defaultdict(Counter)
     split = merged = false_pickups = 0
+    views: dict[str, list[int]] = defaultdict(list)  # fate -> largest views
     for r in records:
         losses = r.get("pixels") or {}
         false_pickups += losses.get("false_pickups", 0)
@@ -136,10 +143,13 @@ def summarise(records: list[dict]) -> dict:
             by_type[o["type"]][o["fate"]] += 1
             split += o["tracks"] > 1
             merged += bool(o["merged"])
+            if "largest_view" in o:  # records before the field have none
+                views[o["fate"]].append(o["largest_view"])
     return {"objects": sum(fates.values()), "fates": {f: fates[f] for f in FATES},
             "by_type": {t: dict(c) for t, c in sorted(by_type.items())},
             "split_into_tracks": split, "merged_with_another": merged,
-            "false_pickups": false_pickups, "episodes": len(records)}  # fmt: skip
+            "false_pickups": false_pickups, "episodes": len(records),
+            "median_largest_view": {f: int(np.median(v)) for f, v in views.items()}}  # fmt: skip
 
 
 def losses_table(summary: dict, top: int = 12) -> str:
@@ -149,8 +159,11 @@ def losses_table(summary: dict, top: int = 12) -> str:
              f"{summary['split_into_tracks']} seen as several tracks by one agent, "
              f"{summary['merged_with_another']} in a mask with another object; "
              f"{summary['false_pickups']} objects in place picked up", "",
-             "| fate | objects | share |", "|---|---:|---:|"]  # fmt: skip
-    lines += [f"| {f} | {c} | {c / n:.2f} |" for f, c in summary["fates"].items()]
+             "| fate | objects | share | median of its largest view (px) |",
+             "|---|---:|---:|---:|"]  # fmt: skip
+    views = summary.get("median_largest_view", {})
+    lines += [f"| {f} | {c} | {c / n:.2f} | {views.get(f, '')} |"
+              for f, c in summary["fates"].items()]  # fmt: skip
     lost = FATES[1:4]  # what the pixels track adds: seen, yet not detected or not picked
     ranked = sorted(summary["by_type"].items(),
                     key=lambda kv: (-sum(kv[1].get(f, 0) for f in lost), kv[0]))  # fmt: skip

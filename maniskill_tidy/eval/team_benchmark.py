@@ -96,7 +96,9 @@ def bench_team(
         env.close()
     n = len(chosen)
     row = {
-        "team": policy + ("-pixels" if cfg.pixels else ""),
+        "team": policy
+        + ("-pixels" if cfg.pixels else "")
+        + ("" if segmentation in ("ground-truth", "learned") else f" ({segmentation})"),
         "env_id": env_id,
         "episodes": n,
         "team_s": seconds["team"] / n,
@@ -109,20 +111,23 @@ def bench_team(
     return row
 
 
-def pixels_jobs(teams: list[str], looks: tuple[str, ...]) -> list[tuple[str, str, str]]:
-    """(team, look, "learned") for each look whose segmenter is trained (``make
-    train-segmenter``); the others are left out, and said so."""
+def pixels_jobs(
+    teams: list[str], looks: tuple[str, ...], segmentation: str = "learned"
+) -> list[tuple[str, str, str]]:
+    """(team, look, ``segmentation``) for each look whose segmenter is trained (``make
+    train-segmenter``; or a segmenter's folder, to time another one); the others are left out,
+    and said so."""
     import sys
 
     jobs = []
     for look in looks:
-        cfg = RunConfig("heuristic-none", "I", "test", None, 1, env=look, segmentation="learned")
+        cfg = RunConfig("heuristic-none", "I", "test", None, 1, env=look, segmentation=segmentation)
         weights = Path(cfg.segmenter()) / "model.pt"
         if not weights.is_file():
             print(f"pixels rows of {look} left out: no {weights} (make train-segmenter)",
                   file=sys.stderr)  # fmt: skip
             continue
-        jobs += [(team, look, "learned") for team in teams]
+        jobs += [(team, look, segmentation) for team in teams]
     return jobs
 
 

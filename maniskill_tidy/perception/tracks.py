@@ -16,6 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit
 
 from maniskill_tidy.perception.instances import Mask2D
 from maniskill_tidy.perception.semantic_map import open3d_intrinsics, open3d_pose
@@ -75,6 +76,57 @@ def mask_position(
     return np.median(world, axis=1)
 
 
+@njit(cache=True, nogil=True)
+def _medians(owner, n, depth, fx, fy, cx, cy, pose):
+    """Per owner 1..n, the median world point of its pixels with a depth (NaN if none)."""
+    h, w = owner.shape
+    counts = np.zeros(n + 1, np.int64)
+    for r in range(h):
+        for c in range(w):
+            if owner[r, c] > 0 and depth[r, c] > 0:
+                counts[owner[r, c]] += 1
+    start = np.zeros(n + 2, np.int64)
+    for k in range(1, n + 1):
+        start[k + 1] = start[k] + counts[k]
+    fill = start.copy()
+    points = np.empty((start[n + 1], 3), np.float64)
+    for r in range(h):
+        for c in range(w):
+            k, z = owner[r, c], np.float64(depth[r, c])
+            if k == 0 or z <= 0:
+                continue
+            x, y = (c - cx) * z / fx, (r - cy) * z / fy
+            for a in range(3):
+                points[fill[k], a] = pose[a, 0] * x + pose[a, 1] * y + pose[a, 2] * z + pose[a, 3]
+            fill[k] += 1
+    out = np.full((n, 3), np.nan)
+    for k in range(1, n + 1):
+        if counts[k]:
+            for a in range(3):
+                out[k - 1, a] = np.median(points[start[k] : start[k + 1], a])
+    return out
+
+
+def mask_positions(
+    masks: list[Mask2D], depth: np.ndarray, intrinsics, extrinsics
+) -> list[np.ndarray | None]:
+    """:func:`mask_position` of each of a frame's masks, which must not overlap (as
+    ``split_instances`` makes them), in one compiled pass: one call per mask cost 2 ms per
+    agent frame, most of it in ``np.median``'s overhead."""
+    d = depth.reshape(depth.shape[:2])
+    owner = np.zeros(d.shape, dtype=np.int32)
+    for k, m in enumerate(masks, start=1):
+        w = m.window
+        inside = m.mask[w]
+        if owner[w][inside].any():
+            raise ValueError(f"mask {k - 1} overlaps an earlier one: expected disjoint masks")
+        owner[w][inside] = k
+    fx, fy, cx, cy = open3d_intrinsics(intrinsics).astype(np.float64)
+    pose = open3d_pose(extrinsics).astype(np.float64)
+    found = _medians(owner, len(masks), np.ascontiguousarray(d), fx, fy, cx, cy, pose)
+    return [None if np.isnan(p[0]) else p for p in found]
+
+
 class Tracker:
     """One agent's tracks; :meth:`update` with each frame's masks."""
 
@@ -83,14 +135,10 @@ class Tracker:
         self.tracks: dict[int, Track] = {}
 
     def update(
-        self, masks: list[Mask2D], depth: np.ndarray, intrinsics, extrinsics, step: int
-    ) -> list[tuple[Mask2D, Track]]:
-        """Each mask with a world position, paired with the track it continues or starts."""
-        located = []
-        for m in masks:
-            p = mask_position(m, depth, intrinsics, extrinsics)
-            if p is not None:
-                located.append((m, p))
+        self, located: list[tuple[Mask2D, np.ndarray]], step: int
+    ) -> list[tuple[Mask2D, np.ndarray, Track]]:
+        """Each mask with its world position (:func:`mask_positions`), with the track it
+        continues or starts."""
         pairs = []  # (cost, mask index, track id) of every admissible match
         tracks = list(self.tracks.values())
         if tracks and located:
@@ -118,5 +166,5 @@ class Tracker:
                 t = Track(len(self.tracks) + 1, p, 1, step)
                 self.tracks[t.id] = t
             t.votes[m.cls] = t.votes.get(m.cls, 0.0) + max(m.score, 1e-6)
-            out.append((m, t))
+            out.append((m, p, t))
         return out

@@ -35,7 +35,7 @@ from maniskill_tidy.perception.tracks import (
     Tracker,
     camera_position,
     coarse_intrinsics,
-    mask_position,
+    mask_positions,
 )
 from maniskill_tidy.policies.base import Agent, AgentView, PublicInfo, Team
 from maniskill_tidy.policies.channel import Outbox
@@ -168,7 +168,6 @@ class PixelsAgent(Agent):
                                  if n == "robot" or n.startswith("furniture:")
                                  or c.is_pickupable(i)]  # fmt: skip
         self.furniture_by_id = public.house.furniture_by_id()
-        self.object_classes = [i for i in range(len(c.names)) if c.is_pickupable(i) and i]
         self.footprints: dict[str, list] = {}  # furniture type -> [(id, footprint)]
         for f in public.house.furniture:
             self.footprints.setdefault(f.type, []).append((f.id, f.footprint()))
@@ -198,25 +197,23 @@ class PixelsAgent(Agent):
         objects = []
         start = time.perf_counter()
         masks = split_instances(labels, depth_g, self.instance_classes, probs,
-                                -(-MIN_PIXELS // grid**2), joined=self.object_classes)  # fmt: skip
+                                -(-MIN_PIXELS // grid**2))  # fmt: skip
         named = time.perf_counter()
         self.segmenter.seconds["instances"] += named - start
-        for m in masks:
-            if c.is_pickupable(m.cls):
-                if m.score >= self.segmenter.threshold:
-                    objects.append(m)
-                continue
-            p = mask_position(m, depth_g, K, E)
+        for m, p in zip(masks, mask_positions(masks, depth_g, K, E), strict=True):
             if p is None:
                 continue
-            if m.cls == robot:
+            if c.is_pickupable(m.cls):
+                if m.score >= self.segmenter.threshold:
+                    objects.append((m, p))
+            elif m.cls == robot:
                 if np.hypot(*(p - camera)[:2]) > OWN_BODY:  # not its own base
                     m.paint(seg, table.structure[robot])
             elif (fid := self._furniture_at(c.names[m.cls].split(":", 1)[1], p)) is not None:
                 m.paint(seg, table.furniture[fid])
-        for m, track in self.tracker.update(objects, depth_g, K, E, step):
+        for m, p, track in self.tracker.update(objects, step):
             sid = table.object_id(track)
-            if self.held and self._is_held(m, depth_g, K, E, camera):
+            if self.held and self._is_held(m, p, camera):
                 sid = self.held
             m.paint(seg, sid)
         self.points = (depth, obs["intrinsics"], E)
@@ -232,12 +229,12 @@ class PixelsAgent(Agent):
                 best, dist = fid, d
         return best
 
-    def _is_held(self, m, depth, K, E, camera) -> bool:
+    def _is_held(self, m, p: np.ndarray, camera: np.ndarray) -> bool:
+        """A mask of the held type seen this close to the camera is the held object."""
         held_type = self.table.instances[self.held].type
         if self.table.classes.names[m.cls] != held_type:
             return False
-        p = mask_position(m, depth, K, E)
-        return p is not None and float(np.linalg.norm(p - camera)) <= HOLD_RANGE
+        return float(np.linalg.norm(p - camera)) <= HOLD_RANGE
 
     def observe(self, view: AgentView) -> None:
         if self.aimed is not None and not view.failed:  # the last PickUp took what it aimed at

@@ -31,7 +31,6 @@ def main() -> None:
     c = seg_classes()
     split = [i for i, n in enumerate(c.names)
              if n == "robot" or n.startswith("furniture:") or c.is_pickupable(i)]  # fmt: skip
-    objects = [i for i in range(len(c.names)) if c.is_pickupable(i)]
     frames = load_split(Path(args.data), args.frames)
     depth = frames["depth_mm"].astype(np.float32) / 1000.0
     for folder in args.weights:
@@ -40,7 +39,7 @@ def main() -> None:
         grids = [coarse(d, step) for d in depth]
         start, masks = time.perf_counter(), 0
         for k in range(len(labels)):
-            masks += len(split_instances(labels[k], grids[k], split, probs[k], 5, joined=objects))
+            masks += len(split_instances(labels[k], grids[k], split, probs[k], 5))
         ms = (time.perf_counter() - start) / len(labels) * 1000
         present = np.mean([len(np.unique(x)) for x in labels])
         print(
