@@ -105,18 +105,18 @@ def test_a_tiny_segmenter_trains_resumes_and_loads(tiny_data, tmp_path, monkeypa
     assert load_segmenter(tmp_path / "a")[1]["weights_sha256"] == retrained["weights_sha256"]
 
 
-def test_a_segmenter_with_a_full_resolution_stem_saves_and_loads(tmp_path):
+def test_a_segmenter_with_a_stem_and_a_hidden_head_saves_and_loads(tmp_path):
     import torch
 
     from maniskill_tidy.models.checkpoints import load_segmenter, save_segmenter
     from maniskill_tidy.models.segmenter import Segmenter
 
     torch.manual_seed(0)
-    model = Segmenter(7, (4, 4, 8, 8, 8), stem=3).eval()
+    model = Segmenter(7, (4, 4, 8, 8, 8), stem=3, head=6).eval()
     save_segmenter(model, tmp_path)
     back, no_card = load_segmenter(tmp_path)
     assert no_card == {}
-    assert back.config() == {"classes": 7, "widths": [4, 4, 8, 8, 8], "stem": 3}
+    assert back.config() == {"classes": 7, "widths": [4, 4, 8, 8, 8], "stem": 3, "head": 6}
     rgb, depth = torch.rand(1, 3, 32, 32) * 255, torch.rand(1, 1, 32, 32) * 3
     with torch.inference_mode():
         assert (model(rgb, depth).argmax(1) == back(rgb, depth).argmax(1)).float().mean() > 0.99

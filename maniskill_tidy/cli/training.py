@@ -93,14 +93,15 @@ def _train_segmenter(args: argparse.Namespace) -> int:
         raise ValueError(f"--weight-power {args.weight_power}: expected 0 (unweighted) to 1")
     if args.objectness < 0:
         raise ValueError(f"--objectness {args.objectness}: expected 0 (none) or a positive weight")
-    if args.stem < 0:
-        raise ValueError(f"--stem {args.stem}: expected 0 (none) or a number of channels")
+    if args.stem < 0 or args.head < 0:
+        raise ValueError(f"--stem {args.stem}, --head {args.head}: expected 0 (none) or a "
+                         "number of channels")  # fmt: skip
     if args.epochs < 1 or args.batch < 1 or not 16 <= args.crop <= 224 or args.crop % 2:
         raise ValueError(f"--epochs {args.epochs}, --batch {args.batch}, --crop {args.crop}: "
                          "expected at least 1, at least 1, an even size in 16..224")  # fmt: skip
     extra = widths("widths", args.widths, count=5) if args.widths else {}
     cfg = SegTrainConfig(args.data, args.out, epochs=args.epochs, batch=args.batch,
-                         crop=args.crop, seed=args.seed, stem=args.stem,
+                         crop=args.crop, seed=args.seed, stem=args.stem, head=args.head,
                          weight_power=args.weight_power, objectness=args.objectness,
                          **extra)  # fmt: skip
     card = train_segmenter(cfg)
@@ -261,6 +262,12 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     ts.add_argument("--stem", type=int, default=0,
                     help="channels of a full-resolution convolution before the first stride "
                     "(0: none)")  # fmt: skip
+    ts.add_argument(
+        "--head",
+        type=int,
+        default=0,
+        help="channels of a hidden 1 x 1 layer before the class logits (0: none)",
+    )
     ts.add_argument("--weight-power", type=float, default=0.75,
                     help="class weights 1 / frequency ** this (0: unweighted)")  # fmt: skip
     ts.add_argument("--objectness", type=float, default=0.0,

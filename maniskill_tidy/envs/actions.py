@@ -73,6 +73,8 @@ LOOK = 30  # degrees per look step
 HORIZON_RANGE = (-30, 60)
 REACH = ARM_REACH  # metres, horizontal, from the robot's centre (1.5)
 MIN_PIXELS = 20  # an instance covering fewer pixels than this is not "visible"
+# how a pixel target's failure ends when the pixel shows no object (or furniture) at all
+NOTHING_DRAWN = "drawn there"
 NO_ROOM = "no room for"  # how a PutDown the whole surface had no room for fails (agents read it)
 MAX_STEPS = 300
 

@@ -54,6 +54,7 @@ from maniskill_tidy.envs.actions import (
     HORIZON_RANGE,
     LOOK,
     MAX_STEPS,
+    NOTHING_DRAWN,
     TARGETS,
     TURN,
     Action,
@@ -495,7 +496,7 @@ class HeteroTidyEnv(BaseEnv):
         inst = self.hs.instances.get(sid)
         want = "object" if act == Action.PickUp else "furniture"
         if inst is None or inst.kind != want:
-            return None, f"{act.name} at pixel {pixel}: no {want} drawn there"
+            return None, f"{act.name} at pixel {pixel}: no {want} {NOTHING_DRAWN}"
         # a door or drawer is part of its piece: PutDown tries the piece's surfaces nearest the
         # pixel first (Manipulation.put_candidates)
         return (inst.id if want == "object" else inst.id.split("/")[0]), None

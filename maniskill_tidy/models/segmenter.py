@@ -39,10 +39,16 @@ class Segmenter(nn.Module):
     """RGB (uint8-valued floats) and depth (metres) -> class logits at half resolution."""
 
     def __init__(
-        self, classes: int, widths: tuple[int, ...] = (16, 24, 32, 48, 64), stem: int = 0
+        self,
+        classes: int,
+        widths: tuple[int, ...] = (16, 24, 32, 48, 64),
+        stem: int = 0,
+        head: int = 0,
     ) -> None:
         super().__init__()
-        self.classes, self.widths, self.stem_width = classes, tuple(widths), stem
+        self.classes, self.widths, self.stem_width, self.head_width = (
+            classes, tuple(widths), stem, head
+        )  # fmt: skip
         # ``stem`` > 0: one convolution at the frame's full resolution before the first stride,
         # so that a small object's detail reaches a learned filter before it is subsampled
         self.stem = nn.Identity() if not stem else nn.Sequential(
@@ -56,7 +62,12 @@ class Segmenter(nn.Module):
         self.up = nn.ModuleList(
             block(widths[i + 1] + widths[i], widths[i]) for i in reversed(range(len(widths) - 1))
         )
-        self.head = nn.Conv2d(widths[0], classes, 1)
+        # ``head`` > 0: a hidden 1 x 1 layer this wide before the class logits, so that ~100
+        # classes are told apart from more than the first level's few channels per pixel
+        self.head = nn.Conv2d(widths[0], classes, 1) if not head else nn.Sequential(
+            nn.Conv2d(widths[0], head, 1, bias=False), nn.BatchNorm2d(head),
+            nn.ReLU(inplace=True), nn.Conv2d(head, classes, 1),
+        )  # fmt: skip
 
     def forward(self, rgb: torch.Tensor, depth: torch.Tensor) -> torch.Tensor:
         """``rgb`` (B, 3, H, W) in 0..255, ``depth`` (B, 1, H, W) in metres."""
@@ -73,7 +84,8 @@ class Segmenter(nn.Module):
         return self.head(x)  # (B, classes, H / 2, W / 2)
 
     def config(self) -> dict:
-        return {"classes": self.classes, "widths": list(self.widths), "stem": self.stem_width}
+        return {"classes": self.classes, "widths": list(self.widths), "stem": self.stem_width,
+                "head": self.head_width}  # fmt: skip
 
 
 def predict(model: Segmenter, rgb: np.ndarray, depth_m: np.ndarray, batch: int = 16):

@@ -135,10 +135,12 @@ class Tracker:
         self.tracks: dict[int, Track] = {}
 
     def update(
-        self, located: list[tuple[Mask2D, np.ndarray]], step: int
+        self, located: list[tuple[Mask2D, np.ndarray]], step: int, starts=None
     ) -> list[tuple[Mask2D, np.ndarray, Track]]:
         """Each mask with its world position (:func:`mask_positions`), with the track it
-        continues or starts."""
+        continues or starts. ``starts``: per mask, whether it may start a track (default all);
+        one that may not and continues none is left out (a detector's hysteresis: a confident
+        sighting starts an object, a less confident one only keeps it)."""
         pairs = []  # (cost, mask index, track id) of every admissible match
         tracks = list(self.tracks.values())
         if tracks and located:
@@ -162,9 +164,11 @@ class Tracker:
                 t.position = (t.position * t.sightings + p) / (t.sightings + 1)
                 t.sightings += 1
                 t.last_step = step
-            else:
+            elif starts is None or starts[i]:
                 t = Track(len(self.tracks) + 1, p, 1, step)
                 self.tracks[t.id] = t
+            else:
+                continue
             t.votes[m.cls] = t.votes.get(m.cls, 0.0) + max(m.score, 1e-6)
             out.append((m, p, t))
         return out

@@ -17,18 +17,21 @@ what it would read in the ground-truth track, made from the agent's own frame al
 Its PickUp and PutDown targets become a pixel of the current frame (the env resolves it,
 ``targets="pixels"``): the pixel of the named object's mask nearest the mask's middle, or for a
 surface, the pixel of that furniture's mask whose point lies nearest the surface. A target not
-in view is aimed at no pixel (the env names the failure, as for an id not in view).
+in view is aimed at no pixel (the env names the failure, as for an id not in view). A PickUp
+whose pixel showed no object at all (the env's failure says so, as a gripper closing on nothing
+would) refutes the track it aimed at: that track's masks are no longer shown to the team.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import time
+from collections import Counter
 from typing import ClassVar
 
 import numpy as np
 
-from maniskill_tidy.envs.actions import MIN_PIXELS, Action, Targeted
+from maniskill_tidy.envs.actions import MIN_PIXELS, NOTHING_DRAWN, Action, Targeted
 from maniskill_tidy.perception.instances import coarse, split_instances
 from maniskill_tidy.perception.seg_classes import STRUCTURE, seg_classes
 from maniskill_tidy.perception.tracks import (
@@ -47,6 +50,11 @@ OBJECT_BASE = 1024
 FURNITURE_MATCH = 1.0  # metres from a mask's point to the nearest footprint of its type
 HOLD_RANGE = 0.8  # metres from the camera: a mask of the held type this close is the held one
 OWN_BODY = 0.45  # metres (horizontal) from the camera: a robot this close is the agent itself
+# an object mask this confident continues a track; to start one it needs the card's threshold
+KEEP_THRESHOLD = 0.6
+REAIM = 0.6  # metres: a PickUp of an object out of view takes one of its type this close
+CONFIRM = 2  # frames an object must be seen in before the team is shown it
+FAILS = 2  # failed PickUps aimed at a track that refute it
 PIXELS_OBSERVATION = "rgb+depth"
 
 
@@ -179,6 +187,9 @@ class PixelsAgent(Agent):
         self.seg = None  # this frame's predicted ids
         self.points = None  # this frame's back-projection inputs
         self.aimed: int | None = None  # the seg id of the last PickUp's target
+        self.refuted: set[int] = set()  # tracks a PickUp found nothing at: no object there
+        self.fails: Counter = Counter()  # track -> PickUps aimed at it that failed
+        self.in_frame: dict[int, tuple] = {}  # this frame's object slots: (class, position)
 
     # ------------------------------------------------------------------ perception
     def _frame(self, obs: dict, step: int) -> np.ndarray:
@@ -204,18 +215,23 @@ class PixelsAgent(Agent):
             if p is None:
                 continue
             if c.is_pickupable(m.cls):
-                if m.score >= self.segmenter.threshold:
+                if m.score >= min(KEEP_THRESHOLD, self.segmenter.threshold):
                     objects.append((m, p))
             elif m.cls == robot:
                 if np.hypot(*(p - camera)[:2]) > OWN_BODY:  # not its own base
                     m.paint(seg, table.structure[robot])
             elif (fid := self._furniture_at(c.names[m.cls].split(":", 1)[1], p)) is not None:
                 m.paint(seg, table.furniture[fid])
-        for m, p, track in self.tracker.update(objects, step):
+        starts = [m.score >= self.segmenter.threshold for m, _ in objects]
+        self.in_frame = {}
+        for m, p, track in self.tracker.update(objects, step, starts):
+            if track.id in self.refuted or track.sightings < CONFIRM:
+                continue  # still tracked, so its sightings stay explained
             sid = table.object_id(track)
             if self.held and self._is_held(m, p, camera):
                 sid = self.held
             m.paint(seg, sid)
+            self.in_frame[sid] = (m.cls, p)
         self.points = (depth, obs["intrinsics"], E)
         self.segmenter.seconds["labels"] += time.perf_counter() - named
         return np.repeat(np.repeat(seg, grid, axis=0), grid, axis=1)
@@ -239,6 +255,12 @@ class PixelsAgent(Agent):
     def observe(self, view: AgentView) -> None:
         if self.aimed is not None and not view.failed:  # the last PickUp took what it aimed at
             self.held = self.aimed
+        elif self.aimed is not None:  # the PickUp failed
+            for t in [t for t, sid in self.table.by_track.items() if sid == self.aimed]:
+                self.fails[t] += 1
+                # its pixel showed no object, or it failed again: a false detection
+                if view.failed.endswith(f"no object {NOTHING_DRAWN}") or self.fails[t] >= FAILS:
+                    self.refuted.add(t)
         if not int(view.obs.get("held", 0)):
             self.held = 0
         self.aimed = None
@@ -259,11 +281,27 @@ class PixelsAgent(Agent):
                 self.aimed = self._largest_object()
             return action
         if action.action == Action.PickUp:
-            sid = self.table.by_id.get(action.target)
+            sid = self._in_view(self.table.by_id.get(action.target))
             self.aimed = sid
             return Targeted(action.action, self._pixel(sid))
         fid, _, surface = str(action.target).partition("/")
         return Targeted(action.action, self._pixel(self.table.furniture.get(fid), surface, fid))
+
+    def _in_view(self, sid: int | None) -> int | None:
+        """``sid`` if this frame shows it, else the object of its type shown nearest where its
+        track lies (within ``REAIM``): the same object seen as another track this time."""
+        if sid is None or sid in self.in_frame:
+            return sid
+        tracks = [t for t, s in self.table.by_track.items() if s == sid]
+        if not tracks:
+            return sid
+        track = self.tracker.tracks[tracks[-1]]
+        best, dist = sid, REAIM
+        for other, (cls, p) in self.in_frame.items():
+            d = float(np.linalg.norm(p - track.position))
+            if cls == track.cls and d <= dist:
+                best, dist = other, d
+        return best
 
     def _largest_object(self) -> int | None:
         ids, counts = np.unique(self.seg[self.seg >= OBJECT_BASE], return_counts=True)

@@ -46,6 +46,7 @@ class SegTrainConfig:
     # against 0.265 for ~1 ms more per frame (the label head reads the stride-2 level)
     widths: tuple[int, ...] = (16, 24, 32, 48, 64)
     stem: int = 0  # channels of a full-resolution convolution first (0: none; 8: +0.6 ms)
+    head: int = 0  # channels of a hidden 1 x 1 layer before the class logits (0: none)
     seed: int = 0
     eval_frames: int = 400  # val frames scored per epoch (evenly spaced); test: all
     weight_power: float = 0.75  # class weights: 1 / frequency ** this (val: 0.25-1 tried)
@@ -111,28 +112,34 @@ def truth_masks(cls: np.ndarray, instance: np.ndarray, pickupable: list[int]) ->
     return out
 
 
-def _pairs(model: Segmenter, frames: dict) -> tuple[list, list[int], np.ndarray]:
+def instance_pairs(
+    model: Segmenter, frames: dict, relabel=None
+) -> tuple[list, list[int], np.ndarray]:
     """Per frame (truth, predicted instances) over the pickupable types, the instances made as
     agents make them (on the network's grid, masks of ``MIN_PIXELS`` or more at the frames'
     resolution: agents cannot act on smaller ones) and compared at the frames' resolution;
-    the pickupable classes and the predicted labels, upsampled."""
+    the pickupable classes and the predicted labels, upsampled. ``relabel(labels, probs,
+    depth)``: a change to a frame's labels on the grid before its instances are made (probes)."""
     classes = seg_classes()
     pickupable = [i for i in range(len(classes.names)) if classes.is_pickupable(i)]
     depth = frames["depth_mm"].astype(np.float32) / 1000.0
     labels, probs = predict(model, frames["rgb"], depth)
     step = depth.shape[1] // labels.shape[1]
     least = -(-MIN_PIXELS // step**2)
-    pairs = [(truth_masks(frames["cls"][k], frames["instance"][k], pickupable),
-              [m.upscaled(step) for m in split_instances(labels[k], coarse(depth[k], step),
-                                                         pickupable, probs[k], least)])
-             for k in range(len(labels))]  # fmt: skip
+    pairs = []
+    for k in range(len(labels)):
+        grid = coarse(depth[k], step)
+        lab = labels[k] if relabel is None else relabel(labels[k], probs[k], grid)
+        masks = split_instances(lab, grid, pickupable, probs[k], least)
+        truth = truth_masks(frames["cls"][k], frames["instance"][k], pickupable)
+        pairs.append((truth, [m.upscaled(step) for m in masks]))
     return pairs, pickupable, upsample(labels, probs, depth.shape[1:3])[0]
 
 
 def agent_threshold(model: Segmenter, frames: dict) -> dict:
     """The confidence under which agents leave an object mask out: the best F1 on val frames
     (``mask_ap.score_threshold``), with its precision and recall."""
-    pairs, pickupable, labels = _pairs(model, frames)
+    pairs, pickupable, labels = instance_pairs(model, frames)
     return score_threshold(pairs, pickupable, labels.shape[1:3], ignore_below=MIN_PIXELS)
 
 
@@ -142,7 +149,7 @@ def evaluate(model: Segmenter, frames: dict) -> dict:
     ones ignored, also reported counted), and the share of pickupable pixels labelled with
     their type."""
     classes = seg_classes()
-    pairs, pickupable, labels = _pairs(model, frames)
+    pairs, pickupable, labels = instance_pairs(model, frames)
     out = mask_ap(pairs, pickupable, labels.shape[1:3], ignore_below=MIN_PIXELS)
     every = mask_ap(pairs, pickupable, labels.shape[1:3])  # tinier objects counted too
     out["AP50_every_size"], out["AP_every_size"] = every["AP50"], every["AP"]
@@ -208,7 +215,7 @@ def train_segmenter(cfg: SegTrainConfig, progress: bool = True) -> dict:
     train = load_split(data / "train", cfg.limit.get("train"))
     val = load_split(data / "val", cfg.limit.get("val", cfg.eval_frames))
     torch.manual_seed(cfg.seed)
-    model = Segmenter(len(classes.names), cfg.widths, cfg.stem)
+    model = Segmenter(len(classes.names), cfg.widths, cfg.stem, cfg.head)
     optimiser = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=1e-4)
     steps = cfg.epochs * max(1, len(train["rgb"]) // cfg.batch)
     schedule = torch.optim.lr_scheduler.OneCycleLR(optimiser, cfg.lr, total_steps=steps)

@@ -17,12 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
-from maniskill_tidy.envs.actions import MIN_PIXELS
 from maniskill_tidy.models import checkpoints
-from maniskill_tidy.models.segmenter import predict
-from maniskill_tidy.perception.instances import coarse, split_instances
 from maniskill_tidy.perception.seg_classes import seg_classes
-from maniskill_tidy.training.segmenter_trainer import evaluate, load_split, truth_masks
+from maniskill_tidy.training.segmenter_trainer import evaluate, instance_pairs, load_split
 
 
 def what_lies_under(mask, truth, cls, classes) -> str:
@@ -58,19 +55,12 @@ def main() -> None:
             f"{s['pixel_accuracy']:.2f}; {s['predicted']} masks for {s['truth']} objects"
         )
     classes = seg_classes()
-    pickupable = [i for i in range(len(classes.names)) if classes.is_pickupable(i)]
     frames = load_split(Path(args.data) / "val", args.frames)
-    depth = frames["depth_mm"].astype(np.float32) / 1000.0
-    labels, probs = predict(model, frames["rgb"], depth)
-    step = depth.shape[1] // labels.shape[1]
     kinds: Counter = Counter()
     scores: dict[str, list] = {}
     areas: dict[str, list] = {}
-    for k in range(len(labels)):
-        truth = truth_masks(frames["cls"][k], frames["instance"][k], pickupable)
-        masks = split_instances(labels[k], coarse(depth[k], step), pickupable, probs[k],
-                                -(-MIN_PIXELS // step**2))  # fmt: skip
-        for m in (m.upscaled(step) for m in masks):
+    for k, (truth, masks) in enumerate(instance_pairs(model, frames)[0]):
+        for m in masks:
             kind = what_lies_under(m, truth, frames["cls"][k], classes)
             kinds[kind] += 1
             scores.setdefault(kind, []).append(m.score)

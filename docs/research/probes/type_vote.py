@@ -19,10 +19,9 @@ from scipy import ndimage
 from maniskill_tidy.envs.actions import MIN_PIXELS
 from maniskill_tidy.eval.mask_ap import mask_ap, score_threshold
 from maniskill_tidy.models import checkpoints
-from maniskill_tidy.models.segmenter import predict
-from maniskill_tidy.perception.instances import coarse, depth_edges, split_instances
+from maniskill_tidy.perception.instances import depth_edges
 from maniskill_tidy.perception.seg_classes import seg_classes
-from maniskill_tidy.training.segmenter_trainer import load_split, truth_masks
+from maniskill_tidy.training.segmenter_trainer import instance_pairs, load_split
 
 
 def vote_types(
@@ -62,23 +61,16 @@ def main() -> None:
     classes = seg_classes()
     pickupable = [i for i in range(len(classes.names)) if classes.is_pickupable(i)]
     frames = load_split(Path(args.data), args.frames)
-    depth = frames["depth_mm"].astype(np.float32) / 1000.0
-    labels, probs = predict(checkpoints.load_segmenter(Path(args.weights))[0], frames["rgb"], depth)
-    step = depth.shape[1] // labels.shape[1]
-    least = -(-MIN_PIXELS // step**2)
-    truth = [truth_masks(frames["cls"][k], frames["instance"][k], pickupable)
-             for k in range(len(labels))]  # fmt: skip
+    model = checkpoints.load_segmenter(Path(args.weights))[0]
+    shape = frames["rgb"].shape[1:3]
+
+    def voted(labels, probs, depth):
+        return vote_types(labels, probs, depth, classes.first_pickupable)
+
     for vote in (False, True):
-        pairs = []
-        for k in range(len(labels)):
-            d = coarse(depth[k], step)
-            lab = labels[k]
-            if vote:
-                lab = vote_types(lab, probs[k], d, classes.first_pickupable)
-            pred = [m.upscaled(step) for m in split_instances(lab, d, pickupable, probs[k], least)]
-            pairs.append((truth[k], pred))
-        ap50 = mask_ap(pairs, pickupable, depth.shape[1:3], ignore_below=MIN_PIXELS)
-        best = score_threshold(pairs, pickupable, depth.shape[1:3], ignore_below=MIN_PIXELS)
+        pairs = instance_pairs(model, frames, voted if vote else None)[0]
+        ap50 = mask_ap(pairs, pickupable, shape, ignore_below=MIN_PIXELS)
+        best = score_threshold(pairs, pickupable, shape, ignore_below=MIN_PIXELS)
         print(
             f"vote={vote}: AP50 {ap50['AP50']:.3f} AP {ap50['AP']:.3f} small "
             f"{ap50['AP_small']:.3f} predicted {ap50['predicted']}; best F1 {best['f1']:.3f} "

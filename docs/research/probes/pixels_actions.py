@@ -1,0 +1,114 @@
+"""What a pixels team's PickUp and PutDown actions met: per episode and in all, how many it
+issued and why each failed (the env's reasons, grouped), how many distinct slots it aimed at,
+and what it held. Tells "detected, not picked" (``pixels-losses``) apart: never tried, tried
+at a pixel with nothing drawn, out of reach, or not in view.
+
+    .venv/bin/python docs/research/probes/pixels_actions.py --policy heuristic-none \\
+        --dataset data/tidy120 --episodes 4
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+from collections import Counter
+
+import numpy as np
+
+from maniskill_tidy.envs.actions import MIN_PIXELS, Action, Targeted
+from maniskill_tidy.eval.episode import play_episode
+from maniskill_tidy.eval.runner import RunConfig, make_env, make_run_team, select
+
+
+def kind(reason: str) -> str:
+    """A failure reason without its ids, pixels and distances."""
+    return re.sub(r"\(.*?\)|[A-Za-z]+_\d+\S*|\d+(\.\d+)?", "#", reason)[:70]
+
+
+class ActionOutcomes:
+    """An episode observer: each PickUp and PutDown with the env's answer; a PickUp failed
+    for want of its target in view, also whether the renderer shows an object of the aimed
+    type in the frame after it (the segmenter missed it) or none (a false detection)."""
+
+    def start(self, env, team, channel) -> None:
+        self.env, self.pending, self.counts = env, {}, Counter()
+        self.agents: dict = {}
+
+    def executing(self, agents) -> None:
+        self.agents = agents
+        self.slots: dict[tuple, bool] = {}  # (agent, slot) shown to the team -> ever real
+
+    def observed(self, t, obs, info) -> None:
+        self.truth = {n: np.asarray(o["segmentation"]) for n, o in obs.items()}
+
+    def _judge_slots(self) -> None:
+        """Each object slot an agent shows: real if most of its pixels, in some frame, are an
+        object of its type."""
+        for name, agent in self.agents.items():
+            seg = getattr(agent, "seg", None)
+            if seg is None or name not in self.truth:
+                continue
+            truth = self.truth[name].reshape(seg.shape)
+            for sid in np.unique(seg[seg >= 1024]):
+                under, n = np.unique(truth[seg == sid], return_counts=True)
+                inst = self.env.instances.get(int(under[np.argmax(n)]))
+                real = inst is not None and inst.type == agent.table.instances[int(sid)].type
+                key = (name, int(sid))
+                self.slots[key] = self.slots.get(key, False) or real
+
+    def decided(self, t, actions, labels) -> None:
+        self._judge_slots()
+        self.pending = {}
+        for name, a in actions.items():
+            op = a.action if isinstance(a, Targeted) else a
+            if op in (Action.PickUp, Action.PutDown):
+                self.pending[name] = op.name
+                self.counts[f"{op.name} issued"] += 1
+
+    def log_step(self, t, obs, actions, info, channel, labels) -> None:
+        for name, op in self.pending.items():
+            reason = info.get("failed", {}).get(name, "")
+            self.counts[f"{op}: " + (kind(reason) if reason else "done")] += 1
+            agent = self.agents.get(name)
+            if op == "PickUp" and "outside" in reason and getattr(agent, "aimed", None):
+                aimed = agent.table.instances[agent.aimed].type
+                seg = np.asarray(obs[name]["segmentation"]).ravel()
+                ids, n = np.unique(seg, return_counts=True)
+                shown = any(self.env.instances.get(int(i)) is not None
+                            and self.env.instances[int(i)].type == aimed and c >= MIN_PIXELS
+                            for i, c in zip(ids, n, strict=True))  # fmt: skip
+                self.counts["PickUp not in view: " + ("an object of its type in view"
+                            if shown else "none of its type in view")] += 1  # fmt: skip
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--policy", default="heuristic-none")
+    ap.add_argument("--dataset", default="data/tidy120")
+    ap.add_argument("--segmentation", default="learned")
+    ap.add_argument("--episodes", type=int, default=4)
+    args = ap.parse_args()
+    cfg = RunConfig(args.policy, "I", "test", args.dataset, args.episodes,
+                    env="HeteroTidy-v2", segmentation=args.segmentation)  # fmt: skip
+    env, team = make_env(cfg), make_run_team(cfg)
+    total: Counter = Counter()
+    try:
+        for i in select([e.start for e in env.unwrapped.episodes.episodes], args.episodes):
+            log = ActionOutcomes()
+            record = play_episode(env, team, i, i, [log])
+            real = sum(log.slots.values())
+            log.counts["slots shown: real objects"] += real
+            log.counts["slots shown: never an object of their type"] += len(log.slots) - real
+            print(f"{record.episode}: success {record.success}, placed {record.reasonable}")
+            for k, v in sorted(log.counts.items()):
+                print(f"  {v:4d}  {k}")
+            total.update(log.counts)
+    finally:
+        env.close()
+    print("all:")
+    for k, v in sorted(total.items()):
+        print(f"  {v:4d}  {k}")
+
+
+if __name__ == "__main__":
+    main()

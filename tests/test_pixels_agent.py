@@ -1,0 +1,133 @@
+"""How a pixels agent turns a segmenter's object masks into what its team sees, on synthetic
+frames: an object is shown once seen twice with confidence, kept by less confident sightings,
+a PickUp of one out of view aims at the same object seen as another track, and a PickUp whose
+pixel showed no object (or that failed twice) hides that track from then on."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace as NS
+
+import numpy as np
+import pytest
+
+from maniskill_tidy.envs.actions import NOTHING_DRAWN, Action, Targeted
+from maniskill_tidy.perception.seg_classes import seg_classes
+from maniskill_tidy.policies.base import AgentView, PublicInfo
+from maniskill_tidy.policies.pixels import CONFIRM, KEEP_THRESHOLD, OBJECT_BASE, PixelsAgent
+
+H = 40  # frame size; the fake segmenter's labels are on a 20 x 20 grid
+
+
+class FakeSegmenter:
+    """Gives the labels and confidences a test sets, as the shared segmenter would."""
+
+    threshold = 0.8
+
+    def __init__(self) -> None:
+        self.seconds = {"segmenter": 0.0, "instances": 0.0, "labels": 0.0}
+        self.labels = np.zeros((H // 2, H // 2), dtype=np.uint8)
+        self.probs = np.ones((H // 2, H // 2), dtype=np.float32)
+
+    def show(self, cls: int, rows: slice, cols: slice, score: float) -> None:
+        self.labels[rows, cols], self.probs[rows, cols] = cls, score
+
+    def clear(self) -> None:
+        self.labels[:] = 0
+
+    def __call__(self, name, rgb, depth):
+        return self.labels.copy(), self.probs.copy()
+
+
+class Inner:
+    """A team's agent that remembers what it was shown and does what the test says."""
+
+    decide_every = 1
+
+    def __init__(self, name, public, outbox) -> None:
+        self.public, self.action, self.seen = public, Action.RotateLeft, None
+
+    def observe(self, view) -> None:
+        self.seen = view.obs["segmentation"]
+
+    def act(self, inbox):
+        return self.action
+
+
+@pytest.fixture
+def agent():
+    house = NS(furniture=[], furniture_by_id=lambda: {})
+    public = PublicInfo(house, ["agent_0"], [], "episode", 0)
+    return PixelsAgent(Inner, "agent_0", public, None, FakeSegmenter())
+
+
+def view(step: int, failed: str = "") -> AgentView:
+    K = np.array([[40.0, 0, 20], [0, 40.0, 20], [0, 0, 1]], dtype=np.float32)
+    obs = {"rgb": np.zeros((H, H, 3), np.uint8), "depth": np.full((H, H), 2.0, np.float32),
+           "intrinsics": K, "extrinsics": np.eye(4, dtype=np.float32),
+           "held": np.int32(0)}  # fmt: skip
+    return AgentView("agent_0", step, obs, failed)
+
+
+def shown(agent) -> set[int]:
+    return {int(i) for i in np.unique(agent.inner.seen) if i >= OBJECT_BASE}
+
+
+def test_an_object_is_shown_once_confirmed_and_kept_by_weaker_sightings(agent):
+    mug, seg = seg_classes().index["Mug"], agent.segmenter
+    seg.show(mug, slice(8, 12), slice(8, 12), 0.9)
+    agent.observe(view(0))
+    assert CONFIRM == 2 and shown(agent) == set()  # one sighting: not yet
+    agent.observe(view(1))
+    (slot,) = shown(agent)
+    seg.show(mug, slice(8, 12), slice(8, 12), KEEP_THRESHOLD + 0.05)  # less sure: still kept
+    seg.show(mug, slice(2, 5), slice(14, 18), KEEP_THRESHOLD + 0.05)  # a new one that unsure: no
+    agent.observe(view(2))
+    agent.observe(view(3))
+    assert shown(agent) == {slot} and len(agent.tracker.tracks) == 1
+    seg.show(mug, slice(8, 12), slice(8, 12), KEEP_THRESHOLD - 0.05)  # too unsure to keep it
+    agent.observe(view(4))
+    assert slot not in shown(agent)
+
+
+def test_a_pickup_aims_at_the_object_its_team_named_and_a_refuted_one_is_hidden(agent):
+    mug, seg = seg_classes().index["Mug"], agent.segmenter
+    seg.show(mug, slice(8, 12), slice(8, 12), 0.9)
+    agent.observe(view(0))
+    agent.observe(view(1))
+    (slot,) = shown(agent)
+    name = agent.table.instances[slot].id
+    agent.inner.action = Targeted(Action.PickUp, name)
+    action = agent.act([])
+    x, y = action.target
+    assert action.action == Action.PickUp and 16 <= x < 24 and 16 <= y < 24
+    # the env found no object at that pixel: a false detection, hidden from now on
+    agent.observe(view(2, f"PickUp at pixel {(x, y)}: no object {NOTHING_DRAWN}"))
+    assert slot not in shown(agent)
+    agent.observe(view(3))
+    assert shown(agent) == set() and agent.tracker.tracks  # still tracked, never shown
+
+
+def test_a_pickup_out_of_view_takes_the_same_object_seen_as_another_track(agent):
+    mug, seg = seg_classes().index["Mug"], agent.segmenter
+    seg.show(mug, slice(8, 12), slice(8, 12), 0.9)
+    agent.observe(view(0))
+    agent.observe(view(1))
+    (slot,) = shown(agent)
+    agent.tracker.tracks[1].position = agent.tracker.tracks[1].position + [0.0, 0.0, 0.4]
+    agent.tracker.radius = 0.1  # so that this frame's sightings start another track ...
+    for step in (2, 3):
+        agent.observe(view(step))
+    (other,) = shown(agent)
+    assert other != slot  # ... shown under another slot, 0.4 m from where the first one lies
+    agent.inner.action = Targeted(Action.PickUp, agent.table.instances[slot].id)
+    action = agent.act([])
+    assert action.target != (-1, -1) and agent.aimed == other
+    # failing twice refutes the track it aimed at
+    seg.clear()
+    out_of_view = "PickUp at pixel (-1, -1): outside the 40 x 40 frame"
+    agent.observe(view(4, out_of_view))
+    assert agent.refuted == set()
+    agent.inner.action = Targeted(Action.PickUp, agent.table.instances[other].id)
+    assert agent.act([]).target == (-1, -1) and agent.aimed == other
+    agent.observe(view(5, out_of_view))
+    assert agent.refuted == {2}
