@@ -14,10 +14,13 @@ from maniskill_tidy.policies.base import Agent, Team
 
 class SpyAgent(Agent):
     seen: list = []
+    failures: list = []
 
     def observe(self, view) -> None:
         self.seen.append((self.name, set(view.obs), int(view.obs.get("held", 0)),
                           dict(self.public.instances)))  # fmt: skip
+        if view.failed:
+            self.failures.append(view.failed)
 
     def act(self, inbox):
         return 8 if self.public.capability(self.name)[1] else 3  # PickUp, or turn
@@ -37,21 +40,26 @@ class PixelsSpyTeam(SpyTeam):
 @pytest.mark.parametrize("team_cls, pixels", [(SpyTeam, False), (PixelsSpyTeam, True)])
 def test_a_pixels_team_receives_no_segmentation_and_no_instance_id(team_cls, pixels):
     """The env renders every image (as for a recording); the runner passes a pixels team none
-    of the renderer's labels, and held as a flag only."""
+    of the renderer's labels, held as a flag only, and the env's failure reasons without the
+    object ids they name."""
     from maniskill_tidy.envs.hetero_tidy import HeteroTidyEnv
     from maniskill_tidy.eval.episode import Execution
     from maniskill_tidy.eval.runner import ALL_IMAGES
 
     env = HeteroTidyEnv(setting="I", split="test", obs_mode=ALL_IMAGES)
-    SpyAgent.seen = []
+    SpyAgent.seen, SpyAgent.failures = [], []
     try:
         obs, info = env.reset(seed=0, options={"episode": 0})
         execution = Execution(team_cls(), env, 0)
         for _ in range(6):
             obs, _, _, _, info = env.step(execution.step(obs, info))
         held = [int(v) for v in env.get_obs()["agent_2"]["held"].reshape(-1)]
+        objects = [i.id for i in env.instances.values() if i.kind == "object"]
     finally:
         env.close()
+    # the env's reasons name objects ("already holding HandTowel_0"); a pixels agent's do not
+    named = [f for f in SpyAgent.failures if any(o in f for o in objects)]
+    assert SpyAgent.failures and (not named if pixels else named)
     keys = set.union(*(k for _, k, _, _ in SpyAgent.seen))
     tables = [t for *_, t in SpyAgent.seen]
     if pixels:

@@ -19,6 +19,7 @@ groups), ``log_step(t, obs, actions, info, channel, labels)`` (after) and ``fini
 from __future__ import annotations
 
 import dataclasses
+import re
 import time
 from typing import Any
 
@@ -61,6 +62,18 @@ def _pixels_only(obs: dict) -> dict:
     return out
 
 
+def _id_redactor(env: Any):
+    """For a pixels team: a failure reason with every object id in it replaced by "an object"
+    (the env's reasons may name what a pixel or a plain PickUp resolved to, "Apple_3 is out of
+    reach"); furniture ids are the public floor plan's and stay."""
+    ids = sorted({i.id for i in env.instances.values() if i.kind == "object"}, key=len,
+                 reverse=True)  # fmt: skip
+    if not ids:
+        return lambda reason: reason
+    pattern = re.compile("|".join(re.escape(i) for i in ids))  # longest first: Apple_10 wins
+    return lambda reason: pattern.sub("an object", reason)
+
+
 class Execution:
     """One team playing one episode: builds its agents and steps them decentrally. A pixels
     team (``team.pixels``) is given no instance table and observations without segmentation
@@ -69,6 +82,7 @@ class Execution:
     def __init__(self, team: AnyTeam, env: Any, seed: int) -> None:
         self.team, self.env = team, env
         self.pixels = bool(getattr(team, "pixels", False))
+        self.redact = _id_redactor(env) if self.pixels else (lambda reason: reason)
         public = PublicInfo.of(env, seed, oracle=getattr(team, "oracle", False))
         if self.pixels:
             public = dataclasses.replace(public, instances={})
@@ -114,7 +128,8 @@ class Execution:
         failed = info.get("failed", {})
         seen = _pixels_only if self.pixels else (lambda o: o)
         views = {
-            n: AgentView(n, self.t, _read_only(seen(obs[n])), failed.get(n, "")) for n in active
+            n: AgentView(n, self.t, _read_only(seen(obs[n])), self.redact(failed.get(n, "")))
+            for n in active
         }
         if self.t % self.decide_every:  # between the team's sub-goal steps
             acts = self._each("quiet_step", {n: (views[n], self.team.rounds) for n in active})

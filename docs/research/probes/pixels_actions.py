@@ -1,7 +1,9 @@
 """What a pixels team's PickUp and PutDown actions met: per episode and in all, how many it
-issued and why each failed (the env's reasons, grouped), how many distinct slots it aimed at,
-and what it held. Tells "detected, not picked" (``pixels-losses``) apart: never tried, tried
-at a pixel with nothing drawn, out of reach, or not in view.
+issued and why each failed (the env's reasons, grouped; a PickUp of an object not in the frame
+also by whether the renderer showed one of the aimed type), and how many of the object slots
+agents showed their team were ever an object of their type. Tells "detected, not picked"
+(``pixels-losses``) apart: tried at a pixel with nothing drawn, out of reach, or chasing a
+detection that is not there.
 
     .venv/bin/python docs/research/probes/pixels_actions.py --policy heuristic-none \\
         --dataset data/tidy120 --episodes 4
