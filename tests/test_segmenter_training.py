@@ -122,6 +122,31 @@ def test_a_segmenter_with_a_stem_and_a_hidden_head_saves_and_loads(tmp_path):
         assert (model(rgb, depth).argmax(1) == back(rgb, depth).argmax(1)).float().mean() > 0.99
 
 
+def test_zoomed_crops_show_objects_larger_and_nearer():
+    """Crops blown up by up to ``zoom`` show an object over more label cells, its depth
+    smaller by the same factor; without zoom, every crop shows it at its size."""
+    from maniskill_tidy.perception.seg_classes import seg_classes
+    from maniskill_tidy.training.segmenter_trainer import _crops
+
+    mug = seg_classes().index["Mug"]
+    frames = {"rgb": np.zeros((1, 224, 224, 3), np.uint8),
+              "depth_mm": np.full((1, 224, 224), 2000, np.uint16),
+              "cls": np.zeros((1, 224, 224), np.uint8)}  # fmt: skip
+    frames["cls"][0, 100:110, 100:110] = mug
+    index = np.zeros(64, dtype=int)
+    rng = np.random.default_rng(0)
+    _, depth, labels = _crops(frames, index, 64, rng, focus=1.0)
+    cells = (labels == mug).sum((1, 2)).numpy()  # 10 x 10 px: 25 cells, fewer where cut
+    assert labels.shape == (64, 32, 32) and cells.max() == 25 and (cells > 0).all()
+    assert (depth == 2.0).all()
+    _, depth, labels = _crops(frames, index, 64, rng, focus=1.0, zoom=2.0)
+    cells = (labels == mug).sum((1, 2)).numpy()
+    near = depth.amin((1, 2, 3)).numpy()
+    assert labels.shape == (64, 32, 32) and cells.max() > 50 and (cells > 0).all()
+    assert (near < 1.9).sum() > 10 and (near >= 0.99).all() and (near <= 2.0).all()
+    assert (cells <= 25 * (2.0 / near) ** 2 + 12).all()  # blown up as much as it came nearer
+
+
 def test_the_objectness_loss_scores_which_pixels_are_objects_not_their_type():
     import torch
 

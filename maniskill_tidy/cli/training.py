@@ -93,6 +93,8 @@ def _train_segmenter(args: argparse.Namespace) -> int:
         raise ValueError(f"--weight-power {args.weight_power}: expected 0 (unweighted) to 1")
     if args.objectness < 0:
         raise ValueError(f"--objectness {args.objectness}: expected 0 (none) or a positive weight")
+    if not 1 <= args.zoom <= 4:
+        raise ValueError(f"--zoom {args.zoom}: expected 1 (none) to 4")
     if args.stem < 0 or args.head < 0:
         raise ValueError(f"--stem {args.stem}, --head {args.head}: expected 0 (none) or a "
                          "number of channels")  # fmt: skip
@@ -102,8 +104,8 @@ def _train_segmenter(args: argparse.Namespace) -> int:
     extra = widths("widths", args.widths, count=5) if args.widths else {}
     cfg = SegTrainConfig(args.data, args.out, epochs=args.epochs, batch=args.batch,
                          crop=args.crop, seed=args.seed, stem=args.stem, head=args.head,
-                         weight_power=args.weight_power, objectness=args.objectness,
-                         **extra)  # fmt: skip
+                         zoom=args.zoom, weight_power=args.weight_power,
+                         objectness=args.objectness, **extra)  # fmt: skip
     card = train_segmenter(cfg)
     t, v = card["test"], card["val"]
     print(f"{args.out}: best epoch {card['best_epoch']} of {args.epochs} "
@@ -262,6 +264,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     ts.add_argument("--stem", type=int, default=0,
                     help="channels of a full-resolution convolution before the first stride "
                     "(0: none)")  # fmt: skip
+    ts.add_argument("--zoom", type=float, default=1.0,
+                    help="half the training crops blown up by up to this factor (1: none)")
     ts.add_argument(
         "--head",
         type=int,

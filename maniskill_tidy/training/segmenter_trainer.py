@@ -57,6 +57,7 @@ class SegTrainConfig:
     # probability of the pickupable types) beside the cross-entropy: the segmenter's misses
     # are which pixels are objects more than their type (research log); 0: none
     objectness: float = 0.0
+    zoom: float = 1.0  # half the crops blown up by up to this factor (1: none)
     limit: dict = field(default_factory=dict)  # split -> at most this many frames (tests)
 
 
@@ -162,28 +163,47 @@ def evaluate(model: Segmenter, frames: dict) -> dict:
 
 
 def _crops(frames: dict, index: np.ndarray, crop: int, rng: np.random.Generator,
-           focus: float = 0.0):  # fmt: skip
+           focus: float = 0.0, zoom: float = 1.0):  # fmt: skip
     """Random crops (the same place per frame for all of its images) and horizontal flips;
-    a ``focus`` share of them holds a pickupable object's pixel (where the frame has one)."""
+    a ``focus`` share of them holds a pickupable object's pixel (where the frame has one).
+    ``zoom`` > 1: half the crops are a smaller square blown up by up to that factor, their
+    depth divided by it (as if the camera stood that much nearer): small objects seen large."""
     rgb, depth = _tensors(frames, index)
     labels = frames["cls"][index]
     cls = torch.from_numpy(labels.astype(np.int64))
     h, w = cls.shape[1:]
-    ys = rng.integers(0, h - crop + 1, len(index))
-    xs = rng.integers(0, w - crop + 1, len(index))
+    if zoom > 1:
+        scale = np.where(rng.random(len(index)) < 0.5, rng.uniform(1.0, zoom, len(index)), 1.0)
+        sizes = np.maximum(np.round(crop / scale / 2).astype(int) * 2, 2)  # even, as labels
+        ys = (rng.random(len(index)) * (h - sizes + 1)).astype(int)
+        xs = (rng.random(len(index)) * (w - sizes + 1)).astype(int)
+    else:  # the random draws of the shipped segmenters' training, unchanged
+        sizes = np.full(len(index), crop)
+        ys = rng.integers(0, h - crop + 1, len(index))
+        xs = rng.integers(0, w - crop + 1, len(index))
     classes = seg_classes()
     for i in np.nonzero(rng.random(len(index)) < focus)[0]:
         rows, cols = np.nonzero(classes.is_pickupable(labels[i]) & (labels[i] > 0))
         if len(rows):  # a crop around one of them, anywhere in the crop
             k = rng.integers(len(rows))
-            ys[i] = np.clip(rows[k] - rng.integers(crop), 0, h - crop)
-            xs[i] = np.clip(cols[k] - rng.integers(crop), 0, w - crop)
+            ys[i] = np.clip(rows[k] - rng.integers(sizes[i]), 0, h - sizes[i])
+            xs[i] = np.clip(cols[k] - rng.integers(sizes[i]), 0, w - sizes[i])
     ys, xs = ys // 2 * 2, xs // 2 * 2  # even: labels at half resolution
     flips = rng.random(len(index)) < 0.5
     out = [], [], []
-    for i, (y, x) in enumerate(zip(ys, xs, strict=True)):
-        parts = (rgb[i, :, y : y + crop, x : x + crop], depth[i, :, y : y + crop, x : x + crop],
-                 cls[i, y : y + crop : 2, x : x + crop : 2])  # fmt: skip
+    for i, (y, x, c) in enumerate(zip(ys, xs, sizes, strict=True)):
+        if c == crop:
+            parts = (rgb[i, :, y : y + c, x : x + c], depth[i, :, y : y + c, x : x + c],
+                     cls[i, y : y + c : 2, x : x + c : 2])  # fmt: skip
+        else:  # blown up: images bilinear, labels nearest, depth nearer by the same factor
+            parts = (
+                F.interpolate(rgb[i : i + 1, :, y : y + c, x : x + c], size=(crop, crop),
+                              mode="bilinear", align_corners=False)[0],
+                F.interpolate(depth[i : i + 1, :, y : y + c, x : x + c], size=(crop, crop),
+                              mode="nearest")[0] * (c / crop),
+                F.interpolate(cls[None, None, i, y : y + c, x : x + c].float(),
+                              size=(crop // 2, crop // 2), mode="nearest")[0, 0].long(),
+            )  # fmt: skip
         if flips[i]:
             parts = tuple(p.flip(-1) for p in parts)
         for store, p in zip(out, parts, strict=True):
@@ -249,7 +269,7 @@ def train_segmenter(cfg: SegTrainConfig, progress: bool = True) -> dict:
             losses = []
             for s in range(0, len(order) - cfg.batch + 1, cfg.batch):
                 rgb, depth, target = _crops(train, order[s : s + cfg.batch], cfg.crop, rng,
-                                            cfg.focus)  # fmt: skip
+                                            cfg.focus, cfg.zoom)  # fmt: skip
                 logits = model(rgb, depth)
                 loss = F.cross_entropy(logits, target, weight=weights)
                 if cfg.objectness:
