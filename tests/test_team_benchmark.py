@@ -175,11 +175,18 @@ def test_the_bench_times_the_teams_and_looks_asked_for(monkeypatch, capsys):
     ran.clear()
     assert bench.main([*argv, "pixels"]) == 0
     assert [r[2] for r in ran] == ["ground-truth", "ground-truth"]
+    ran.clear()  # another segmenter's folder, timed in the same rows
+    assert bench.main([*argv, "--segmenter", "agents/segmenter-v1"]) == 0
+    assert ran[-1] == ("heuristic-none", "HeteroTidy-v2", "agents/segmenter-v1")
 
 
 @pytest.mark.parametrize(
     "flag, value, said",
-    [("--teams", "nobody", "unknown policy 'nobody'"), ("--looks", "v3", "expected v1")],
+    [
+        ("--teams", "nobody", "unknown policy 'nobody'"),
+        ("--looks", "v3", "expected v1"),
+        ("--segmenter", "nowhere", "--segmenter: no nowhere/model.pt"),
+    ],
 )
 def test_the_bench_refuses_unknown_teams_and_looks(flag, value, said, capsys):
     from maniskill_tidy import bench
