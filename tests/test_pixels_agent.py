@@ -27,9 +27,11 @@ class FakeSegmenter:
         self.seconds = {"segmenter": 0.0, "instances": 0.0, "labels": 0.0}
         self.labels = np.zeros((H // 2, H // 2), dtype=np.uint8)
         self.probs = np.ones((H // 2, H // 2), dtype=np.float32)
+        self.depth = np.full((H, H), 2.0, np.float32)  # what the frames show: objects nearer
 
     def show(self, cls: int, rows: slice, cols: slice, score: float) -> None:
         self.labels[rows, cols], self.probs[rows, cols] = cls, score
+        self.depth[rows.start * 2 : rows.stop * 2, cols.start * 2 : cols.stop * 2] = 1.8
 
     def clear(self) -> None:
         self.labels[:] = 0
@@ -60,9 +62,9 @@ def agent():
     return PixelsAgent(Inner, "agent_0", public, None, FakeSegmenter())
 
 
-def view(step: int, failed: str = "") -> AgentView:
+def view(agent, step: int, failed: str = "") -> AgentView:
     K = np.array([[40.0, 0, 20], [0, 40.0, 20], [0, 0, 1]], dtype=np.float32)
-    obs = {"rgb": np.zeros((H, H, 3), np.uint8), "depth": np.full((H, H), 2.0, np.float32),
+    obs = {"rgb": np.zeros((H, H, 3), np.uint8), "depth": agent.segmenter.depth.copy(),
            "intrinsics": K, "extrinsics": np.eye(4, dtype=np.float32),
            "held": np.int32(0)}  # fmt: skip
     return AgentView("agent_0", step, obs, failed)
@@ -75,25 +77,25 @@ def shown(agent) -> set[int]:
 def test_an_object_is_shown_once_confirmed_and_kept_by_weaker_sightings(agent):
     mug, seg = seg_classes().index["Mug"], agent.segmenter
     seg.show(mug, slice(8, 12), slice(8, 12), 0.9)
-    agent.observe(view(0))
+    agent.observe(view(agent, 0))
     assert CONFIRM == 2 and shown(agent) == set()  # one sighting: not yet
-    agent.observe(view(1))
+    agent.observe(view(agent, 1))
     (slot,) = shown(agent)
     seg.show(mug, slice(8, 12), slice(8, 12), KEEP_THRESHOLD + 0.05)  # less sure: still kept
     seg.show(mug, slice(2, 5), slice(14, 18), KEEP_THRESHOLD + 0.05)  # a new one that unsure: no
-    agent.observe(view(2))
-    agent.observe(view(3))
+    agent.observe(view(agent, 2))
+    agent.observe(view(agent, 3))
     assert shown(agent) == {slot} and len(agent.tracker.tracks) == 1
     seg.show(mug, slice(8, 12), slice(8, 12), KEEP_THRESHOLD - 0.05)  # too unsure to keep it
-    agent.observe(view(4))
+    agent.observe(view(agent, 4))
     assert slot not in shown(agent)
 
 
 def test_a_pickup_aims_at_the_object_its_team_named_and_a_refuted_one_is_hidden(agent):
     mug, seg = seg_classes().index["Mug"], agent.segmenter
     seg.show(mug, slice(8, 12), slice(8, 12), 0.9)
-    agent.observe(view(0))
-    agent.observe(view(1))
+    agent.observe(view(agent, 0))
+    agent.observe(view(agent, 1))
     (slot,) = shown(agent)
     name = agent.table.instances[slot].id
     agent.inner.action = Targeted(Action.PickUp, name)
@@ -101,22 +103,22 @@ def test_a_pickup_aims_at_the_object_its_team_named_and_a_refuted_one_is_hidden(
     x, y = action.target
     assert action.action == Action.PickUp and 16 <= x < 24 and 16 <= y < 24
     # the env found no object at that pixel: a false detection, hidden from now on
-    agent.observe(view(2, f"PickUp at pixel {(x, y)}: no object {NOTHING_DRAWN}"))
+    agent.observe(view(agent, 2, f"PickUp at pixel {(x, y)}: no object {NOTHING_DRAWN}"))
     assert slot not in shown(agent)
-    agent.observe(view(3))
+    agent.observe(view(agent, 3))
     assert shown(agent) == set() and agent.tracker.tracks  # still tracked, never shown
 
 
 def test_a_pickup_out_of_view_takes_the_same_object_seen_as_another_track(agent):
     mug, seg = seg_classes().index["Mug"], agent.segmenter
     seg.show(mug, slice(8, 12), slice(8, 12), 0.9)
-    agent.observe(view(0))
-    agent.observe(view(1))
+    agent.observe(view(agent, 0))
+    agent.observe(view(agent, 1))
     (slot,) = shown(agent)
     agent.tracker.tracks[1].position = agent.tracker.tracks[1].position + [0.0, 0.0, 0.4]
     agent.tracker.radius = 0.1  # so that this frame's sightings start another track ...
     for step in (2, 3):
-        agent.observe(view(step))
+        agent.observe(view(agent, step))
     (other,) = shown(agent)
     assert other != slot  # ... shown under another slot, 0.4 m from where the first one lies
     agent.inner.action = Targeted(Action.PickUp, agent.table.instances[slot].id)
@@ -125,9 +127,9 @@ def test_a_pickup_out_of_view_takes_the_same_object_seen_as_another_track(agent)
     # failing twice refutes the track it aimed at
     seg.clear()
     out_of_view = "PickUp at pixel (-1, -1): outside the 40 x 40 frame"
-    agent.observe(view(4, out_of_view))
+    agent.observe(view(agent, 4, out_of_view))
     assert agent.refuted == set()
     agent.inner.action = Targeted(Action.PickUp, agent.table.instances[other].id)
     assert agent.act([]).target == (-1, -1) and agent.aimed == other
-    agent.observe(view(5, out_of_view))
+    agent.observe(view(agent, 5, out_of_view))
     assert agent.refuted == {2}

@@ -119,6 +119,27 @@ def test_instances_are_the_components_of_a_pixel_graph():
         assert all(g.mask[g.window].sum() == g.mask.sum() for g in got)
 
 
+def test_a_mask_in_front_of_its_surroundings_keeps_its_score_a_flat_patch_loses_half():
+    from maniskill_tidy.perception.instances import (
+        Mask2D,
+        depth_contrast,
+        scored_by_contrast,
+    )
+
+    depth = np.full((30, 30), 2.0, dtype=np.float32)
+    depth[5:10, 5:10] = 1.9  # a box standing 10 cm proud of the floor behind it
+    box = np.zeros((30, 30), dtype=bool)
+    box[5:10, 5:10] = True
+    patch = np.zeros((30, 30), dtype=bool)
+    patch[20:25, 20:25] = True  # floor texture taken for an object
+    assert depth_contrast(Mask2D(7, box, 0.9), depth) == pytest.approx(0.1)
+    assert depth_contrast(Mask2D(7, patch, 0.9, (slice(20, 25), slice(20, 25))), depth) == 0
+    a, b, c = scored_by_contrast([Mask2D(7, box, 0.9), Mask2D(7, patch, 0.9),
+                                  Mask2D(3, patch, 0.9)], depth, [7])  # fmt: skip
+    assert a.score == pytest.approx(0.9, abs=1e-3) and b.score == pytest.approx(0.45)
+    assert c.score == 0.9  # not an object class: untouched
+
+
 def test_instances_split_at_depth_jumps_and_score_a_perfect_prediction_at_ap_one(tiny):
     from maniskill_tidy.eval.mask_ap import mask_ap
     from maniskill_tidy.perception.instances import Mask2D, split_instances

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
+from scipy import ndimage
 
 MIN_PIXELS = 8  # smaller components are noise at 224 px
 DEPTH_JUMP = 0.08  # metres, plus 5 % of the depth: a step this large separates two instances
@@ -154,4 +155,36 @@ def split_instances(
         m[window] = part[window] == k + 1
         score = float(sums[k + 1] / size[k]) if probabilities is not None else 1.0
         out.append(Mask2D(int(cls[k]), m, score, window))
+    return out
+
+
+CONTRAST_SCALE = 0.01  # metres: a mask this much nearer than its ring scores 0.73 of itself
+
+
+def depth_contrast(mask: Mask2D, depth: np.ndarray, ring: int = 2) -> float:
+    """How much nearer the camera a mask lies than the pixels around it (within ``ring``
+    4-neighbour steps, outside it): median depths, metres. An object stands in front of what
+    it lies on; a patch of floor or wood texture taken for one does not."""
+    (r, c), (h, w) = mask.window, mask.mask.shape
+    r0, r1 = max((r.start or 0) - ring, 0), min((h if r.stop is None else r.stop) + ring, h)
+    c0, c1 = max((c.start or 0) - ring, 0), min((w if c.stop is None else c.stop) + ring, w)
+    inside = mask.mask[r0:r1, c0:c1]
+    around = ndimage.binary_dilation(inside, iterations=ring) & ~inside
+    d = depth.reshape(mask.mask.shape)[r0:r1, c0:c1]
+    if not around.any() or not inside.any():
+        return 0.0
+    return float(np.median(d[around]) - np.median(d[inside]))
+
+
+def scored_by_contrast(masks: list[Mask2D], depth: np.ndarray, classes) -> list[Mask2D]:
+    """The masks, those of ``classes`` (the pickupable types) with their score times the
+    logistic of their depth contrast over ``CONTRAST_SCALE``: on val frames of the v2
+    segmenter, mask AP50 0.389 against 0.325 by confidence alone (research log)."""
+    wanted = set(int(c) for c in classes)
+    out = []
+    for m in masks:
+        if m.cls in wanted:
+            gate = 1.0 / (1.0 + np.exp(-depth_contrast(m, depth) / CONTRAST_SCALE))
+            m = Mask2D(m.cls, m.mask, m.score * float(gate), m.box)
+        out.append(m)
     return out

@@ -32,7 +32,7 @@ from typing import ClassVar
 import numpy as np
 
 from maniskill_tidy.envs.actions import MIN_PIXELS, NOTHING_DRAWN, Action, Targeted
-from maniskill_tidy.perception.instances import coarse, split_instances
+from maniskill_tidy.perception.instances import coarse, scored_by_contrast, split_instances
 from maniskill_tidy.perception.seg_classes import STRUCTURE, seg_classes
 from maniskill_tidy.perception.tracks import (
     Tracker,
@@ -176,6 +176,7 @@ class PixelsAgent(Agent):
                                  if n == "robot" or n.startswith("furniture:")
                                  or c.is_pickupable(i)]  # fmt: skip
         self.furniture_by_id = public.house.furniture_by_id()
+        self.object_classes = [i for i in range(len(c.names)) if c.is_pickupable(i) and i]
         self.footprints: dict[str, list] = {}  # furniture type -> [(id, footprint)]
         for f in public.house.furniture:
             self.footprints.setdefault(f.type, []).append((f.id, f.footprint()))
@@ -209,6 +210,7 @@ class PixelsAgent(Agent):
         start = time.perf_counter()
         masks = split_instances(labels, depth_g, self.instance_classes, probs,
                                 -(-MIN_PIXELS // grid**2))  # fmt: skip
+        masks = scored_by_contrast(masks, depth_g, self.object_classes)
         named = time.perf_counter()
         self.segmenter.seconds["instances"] += named - start
         for m, p in zip(masks, mask_positions(masks, depth_g, K, E), strict=True):

@@ -28,7 +28,12 @@ from maniskill_tidy.envs.actions import MIN_PIXELS
 from maniskill_tidy.eval.mask_ap import mask_ap, score_threshold
 from maniskill_tidy.models import checkpoints
 from maniskill_tidy.models.segmenter import Segmenter, predict, upsample
-from maniskill_tidy.perception.instances import Mask2D, coarse, split_instances
+from maniskill_tidy.perception.instances import (
+    Mask2D,
+    coarse,
+    scored_by_contrast,
+    split_instances,
+)
 from maniskill_tidy.perception.seg_classes import seg_classes
 
 SPLITS = ("train", "val", "test")
@@ -131,7 +136,8 @@ def instance_pairs(
     for k in range(len(labels)):
         grid = coarse(depth[k], step)
         lab = labels[k] if relabel is None else relabel(labels[k], probs[k], grid)
-        masks = split_instances(lab, grid, pickupable, probs[k], least)
+        masks = scored_by_contrast(split_instances(lab, grid, pickupable, probs[k], least),
+                                   grid, pickupable)  # fmt: skip
         truth = truth_masks(frames["cls"][k], frames["instance"][k], pickupable)
         pairs.append((truth, [m.upscaled(step) for m in masks]))
     return pairs, pickupable, upsample(labels, probs, depth.shape[1:3])[0]
