@@ -144,6 +144,10 @@ class LabelTable:
         self.by_track: dict[int, int] = {}  # track id -> seg id
         self.by_id = {inst.id: sid for sid, inst in self.instances.items()}
 
+    def tracks_of(self, sid: int) -> list[int]:
+        """The tracks shown under slot ``sid`` (one, or none; the latest last)."""
+        return [t for t, s in self.by_track.items() if s == sid]
+
     def object_id(self, track) -> int:
         """The slot of a track: a new one for a new track, or when its type changed (its
         sightings voted otherwise); the oldest of the type reused when all are taken."""
@@ -258,7 +262,7 @@ class PixelsAgent(Agent):
         if self.aimed is not None and not view.failed:  # the last PickUp took what it aimed at
             self.held = self.aimed
         elif self.aimed is not None:  # the PickUp failed
-            for t in [t for t, sid in self.table.by_track.items() if sid == self.aimed]:
+            for t in self.table.tracks_of(self.aimed):
                 self.fails[t] += 1
                 # its pixel showed no object, or it failed again: a false detection
                 if view.failed.endswith(f"no object {NOTHING_DRAWN}") or self.fails[t] >= FAILS:
@@ -294,7 +298,7 @@ class PixelsAgent(Agent):
         track lies (within ``REAIM``): the same object seen as another track this time."""
         if sid is None or sid in self.in_frame:
             return sid
-        tracks = [t for t, s in self.table.by_track.items() if s == sid]
+        tracks = self.table.tracks_of(sid)
         if not tracks:
             return sid
         track = self.tracker.tracks[tracks[-1]]
