@@ -140,6 +140,28 @@ def test_a_mask_in_front_of_its_surroundings_keeps_its_score_a_flat_patch_loses_
     assert c.score == 0.9  # not an object class: untouched
 
 
+def test_depth_contrast_rings_a_mask_as_a_scipy_dilation_does_at_the_frame_borders_too():
+    from scipy import ndimage
+
+    from maniskill_tidy.perception.instances import Mask2D, depth_contrast
+
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        h, w = rng.integers(4, 30, 2)
+        mask = np.zeros((h, w), dtype=bool)
+        r0, c0 = rng.integers(0, h), rng.integers(0, w)
+        r1, c1 = rng.integers(r0, h + 1), rng.integers(c0, w + 1)
+        mask[r0:r1, c0:c1] = rng.random((r1 - r0, c1 - c0)) < 0.7
+        depth = (rng.random((h, w)) * 3).astype(np.float32)
+        around = ndimage.binary_dilation(mask, iterations=2) & ~mask
+        want = (
+            np.median(depth[around]) - np.median(depth[mask]) if around.any() and mask.any() else 0
+        )
+        box = (slice(r0, r1), slice(c0, c1))
+        for m in (Mask2D(1, mask, 1.0), Mask2D(1, mask, 1.0, box)):
+            assert depth_contrast(m, depth) == pytest.approx(float(want), abs=1e-6)
+
+
 def test_instances_split_at_depth_jumps_and_score_a_perfect_prediction_at_ap_one(tiny):
     from maniskill_tidy.eval.mask_ap import mask_ap
     from maniskill_tidy.perception.instances import Mask2D, split_instances

@@ -14,7 +14,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
-from scipy import ndimage
 
 MIN_PIXELS = 8  # smaller components are noise at 224 px
 DEPTH_JUMP = 0.08  # metres, plus 5 % of the depth: a step this large separates two instances
@@ -161,19 +160,49 @@ def split_instances(
 CONTRAST_SCALE = 0.01  # metres: a mask this much nearer than its ring scores 0.73 of itself
 
 
+@njit(cache=True, nogil=True)
+def _contrast(inside, depth, ring):
+    """Median depth of the pixels within ``ring`` 4-neighbour steps of the mask (outside it)
+    less the mask's own, over a window holding both; 0 where either is empty."""
+    h, w = inside.shape
+    own = np.empty(h * w, np.float32)
+    near = np.empty(h * w, np.float32)
+    n_own = n_near = 0
+    for r in range(h):
+        for c in range(w):
+            if inside[r, c]:
+                own[n_own] = depth[r, c]
+                n_own += 1
+                continue
+            found = False
+            for dr in range(-ring, ring + 1):
+                reach = ring - abs(dr)
+                for dc in range(-reach, reach + 1):
+                    rr, cc = r + dr, c + dc
+                    if 0 <= rr < h and 0 <= cc < w and inside[rr, cc]:
+                        found = True
+                        break
+                if found:
+                    break
+            if found:
+                near[n_near] = depth[r, c]
+                n_near += 1
+    if n_own == 0 or n_near == 0:
+        return 0.0
+    return np.median(near[:n_near]) - np.median(own[:n_own])
+
+
 def depth_contrast(mask: Mask2D, depth: np.ndarray, ring: int = 2) -> float:
     """How much nearer the camera a mask lies than the pixels around it (within ``ring``
     4-neighbour steps, outside it): median depths, metres. An object stands in front of what
-    it lies on; a patch of floor or wood texture taken for one does not."""
+    it lies on; a patch of floor or wood texture taken for one does not. Compiled: a scipy
+    dilation per mask cost 1.3 ms per agent frame."""
     (r, c), (h, w) = mask.window, mask.mask.shape
     r0, r1 = max((r.start or 0) - ring, 0), min((h if r.stop is None else r.stop) + ring, h)
     c0, c1 = max((c.start or 0) - ring, 0), min((w if c.stop is None else c.stop) + ring, w)
-    inside = mask.mask[r0:r1, c0:c1]
-    around = ndimage.binary_dilation(inside, iterations=ring) & ~inside
     d = depth.reshape(mask.mask.shape)[r0:r1, c0:c1]
-    if not around.any() or not inside.any():
-        return 0.0
-    return float(np.median(d[around]) - np.median(d[inside]))
+    inside = np.ascontiguousarray(mask.mask[r0:r1, c0:c1])
+    return float(_contrast(inside, np.ascontiguousarray(d, dtype=np.float32), ring))
 
 
 def scored_by_contrast(masks: list[Mask2D], depth: np.ndarray, classes) -> list[Mask2D]:
