@@ -74,6 +74,16 @@ def shown(agent) -> set[int]:
     return {int(i) for i in np.unique(agent.inner.seen) if i >= OBJECT_BASE}
 
 
+def confirmed_mug(agent) -> tuple[int, int]:
+    """A mug drawn sure in two frames (steps 0 and 1): its class and the slot it is shown as."""
+    mug = seg_classes().index["Mug"]
+    agent.segmenter.show(mug, slice(8, 12), slice(8, 12), 0.9)
+    agent.observe(view(agent, 0))
+    agent.observe(view(agent, 1))
+    (slot,) = shown(agent)
+    return mug, slot
+
+
 def test_an_object_is_shown_once_confirmed_and_kept_by_weaker_sightings(agent):
     mug, seg = seg_classes().index["Mug"], agent.segmenter
     seg.show(mug, slice(8, 12), slice(8, 12), 0.9)
@@ -92,11 +102,7 @@ def test_an_object_is_shown_once_confirmed_and_kept_by_weaker_sightings(agent):
 
 
 def test_a_pickup_aims_at_the_object_its_team_named_and_a_refuted_one_is_hidden(agent):
-    mug, seg = seg_classes().index["Mug"], agent.segmenter
-    seg.show(mug, slice(8, 12), slice(8, 12), 0.9)
-    agent.observe(view(agent, 0))
-    agent.observe(view(agent, 1))
-    (slot,) = shown(agent)
+    _, slot = confirmed_mug(agent)
     name = agent.table.instances[slot].id
     agent.inner.action = Targeted(Action.PickUp, name)
     action = agent.act([])
@@ -110,11 +116,7 @@ def test_a_pickup_aims_at_the_object_its_team_named_and_a_refuted_one_is_hidden(
 
 
 def test_a_pickup_out_of_view_takes_the_same_object_seen_as_another_track(agent):
-    mug, seg = seg_classes().index["Mug"], agent.segmenter
-    seg.show(mug, slice(8, 12), slice(8, 12), 0.9)
-    agent.observe(view(agent, 0))
-    agent.observe(view(agent, 1))
-    (slot,) = shown(agent)
+    _, slot = confirmed_mug(agent)
     agent.tracker.tracks[1].position = agent.tracker.tracks[1].position + [0.0, 0.0, 0.4]
     agent.tracker.radius = 0.1  # so that this frame's sightings start another track ...
     for step in (2, 3):
@@ -125,7 +127,7 @@ def test_a_pickup_out_of_view_takes_the_same_object_seen_as_another_track(agent)
     action = agent.act([])
     assert action.target != (-1, -1) and agent.aimed == other
     # failing twice refutes the track it aimed at
-    seg.clear()
+    agent.segmenter.clear()
     out_of_view = "PickUp at pixel (-1, -1): outside the 40 x 40 frame"
     agent.observe(view(agent, 4, out_of_view))
     assert agent.refuted == set()
