@@ -98,7 +98,7 @@ def test_replay_without_a_display_serves_the_web_viewer_on_this_machine_only(tmp
     """A fake ``rerun`` first on the PATH records how it is called."""
     fake = tmp_path / "bin" / "rerun"
     fake.parent.mkdir()
-    fake.write_text(f"#!/bin/sh\necho \"$@\" >> {tmp_path / 'calls'}\n")
+    fake.write_text(f'#!/bin/sh\necho "$@" >> {tmp_path / "calls"}\n')
     fake.chmod(0o755)
     rrd = tmp_path / "episode.rrd"
     rrd.write_bytes(b"RRF2")
@@ -331,3 +331,12 @@ def test_the_cross_look_table_refuses_missing_frames_and_weights(tmp_path):
             str(tmp_path), "--out", str(out))  # fmt: skip
     one_line_error(p, "model.pt not found", "train-segmenter")
     assert not out.with_suffix(".json").exists() and not out.with_suffix(".md").exists()
+
+
+@pytest.mark.parametrize(("option", "value"), [("--focus", "1.5"), ("--zoom", "0.5")])
+def test_train_segmenter_refuses_options_out_of_range_before_reading_frames(tmp_path, option,
+                                                                           value):  # fmt: skip
+    out = tmp_path / "seg"
+    p = cli("train-segmenter", "--data", str(tmp_path / "none"), "--out", str(out), option, value)
+    one_line_error(p, option, "expected")
+    assert not out.exists()

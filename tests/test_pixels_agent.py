@@ -1,7 +1,8 @@
 """How a pixels agent turns a segmenter's object masks into what its team sees, on synthetic
 frames: an object is shown once seen twice with confidence, kept by less confident sightings,
 a PickUp of one out of view aims at the same object seen as another track, and a PickUp whose
-pixel showed no object (or that failed twice) hides that track from then on."""
+pixel showed no object (or that failed twice), or a spot in clear view within reach where it
+was missed more often than seen, hides that track from then on."""
 
 from __future__ import annotations
 
@@ -13,7 +14,14 @@ import pytest
 from maniskill_tidy.envs.actions import NOTHING_DRAWN, Action, Targeted
 from maniskill_tidy.perception.seg_classes import seg_classes
 from maniskill_tidy.policies.base import AgentView, PublicInfo
-from maniskill_tidy.policies.pixels import CONFIRM, KEEP_THRESHOLD, OBJECT_BASE, PixelsAgent
+from maniskill_tidy.policies.pixels import (
+    CONFIRM,
+    KEEP_THRESHOLD,
+    MISSES,
+    OBJECT_BASE,
+    VERIFY_RANGE,
+    PixelsAgent,
+)
 
 H = 40  # frame size; the fake segmenter's labels are on a 20 x 20 grid
 
@@ -29,9 +37,9 @@ class FakeSegmenter:
         self.probs = np.ones((H // 2, H // 2), dtype=np.float32)
         self.depth = np.full((H, H), 2.0, np.float32)  # what the frames show: objects nearer
 
-    def show(self, cls: int, rows: slice, cols: slice, score: float) -> None:
+    def show(self, cls: int, rows: slice, cols: slice, score: float, depth: float = 1.8) -> None:
         self.labels[rows, cols], self.probs[rows, cols] = cls, score
-        self.depth[rows.start * 2 : rows.stop * 2, cols.start * 2 : cols.stop * 2] = 1.8
+        self.depth[rows.start * 2 : rows.stop * 2, cols.start * 2 : cols.stop * 2] = depth
 
     def clear(self) -> None:
         self.labels[:] = 0
@@ -72,6 +80,12 @@ def view(agent, step: int, failed: str = "") -> AgentView:
 
 def shown(agent) -> set[int]:
     return {int(i) for i in np.unique(agent.inner.seen) if i >= OBJECT_BASE}
+
+
+def depth_of(agent, sid: int) -> float:
+    """How far in front of the camera (the world's +z here) the track shown as ``sid`` lies."""
+    (track,) = agent.table.tracks_of(sid)
+    return float(agent.tracker.tracks[track].position[2])
 
 
 def confirmed_mug(agent) -> tuple[int, int]:
@@ -135,3 +149,41 @@ def test_a_pickup_out_of_view_takes_the_same_object_seen_as_another_track(agent)
     assert agent.act([]).target == (-1, -1) and agent.aimed == other
     agent.observe(view(agent, 5, out_of_view))
     assert agent.refuted == {2}
+
+
+def test_a_track_missed_in_clear_view_within_reach_more_often_than_seen_is_hidden(agent):
+    mug, seg = seg_classes().index["Mug"], agent.segmenter
+    seg.show(mug, slice(8, 12), slice(8, 12), 0.9, depth=1.0)  # within reach
+    seg.show(mug, slice(2, 5), slice(14, 18), 0.9, depth=1.8)  # beyond it
+    assert 1.0 < VERIFY_RANGE < 1.8 and MISSES == 2
+    for step in (0, 1):
+        agent.observe(view(agent, step))
+    near, far = sorted(shown(agent), key=lambda sid: depth_of(agent, sid))
+    seg.clear()  # the segmenter no longer sees either, though the depth shows both still
+    for step in (2, 3):  # missed twice where it was seen twice: not yet
+        agent.observe(view(agent, step))
+    assert agent.refuted == set()
+    agent.observe(view(agent, 4))
+    (ghost,) = agent.refuted
+    seg.show(mug, slice(8, 12), slice(8, 12), 0.9, depth=1.0)
+    seg.show(mug, slice(2, 5), slice(14, 18), 0.9, depth=1.8)
+    agent.observe(view(agent, 5))
+    assert shown(agent) == {far}  # the one out of reach was never looked at closely enough
+    assert agent.table.tracks_of(near) == [ghost]
+
+
+def test_a_pickup_of_an_object_missed_this_frame_aims_where_its_track_lies_within_reach(agent):
+    mug, seg = seg_classes().index["Mug"], agent.segmenter
+    seg.show(mug, slice(8, 12), slice(8, 12), 0.9, depth=1.0)
+    for step in (0, 1):
+        agent.observe(view(agent, step))
+    (slot,) = shown(agent)
+    seg.clear()  # missed once: still believed, not shown this frame
+    agent.observe(view(agent, 2))
+    assert shown(agent) == set() and agent.refuted == set()
+    agent.inner.action = Targeted(Action.PickUp, agent.table.instances[slot].id)
+    x, y = agent.act([]).target
+    assert 16 <= x < 24 and 16 <= y < 24  # the spot the depth still shows
+    agent.observe(view(agent, 3, f"PickUp at pixel {(x, y)}: no object {NOTHING_DRAWN}"))
+    assert agent.refuted == {1}
+    assert agent.act([]).target == (-1, -1)  # refuted: no longer recalled

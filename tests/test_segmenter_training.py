@@ -105,21 +105,39 @@ def test_a_tiny_segmenter_trains_resumes_and_loads(tiny_data, tmp_path, monkeypa
     assert load_segmenter(tmp_path / "a")[1]["weights_sha256"] == retrained["weights_sha256"]
 
 
-def test_a_segmenter_with_a_stem_and_a_hidden_head_saves_and_loads(tmp_path):
+def test_a_segmenter_with_a_stem_a_hidden_head_and_relief_saves_and_loads(tmp_path):
     import torch
 
     from maniskill_tidy.models.checkpoints import load_segmenter, save_segmenter
     from maniskill_tidy.models.segmenter import Segmenter
 
     torch.manual_seed(0)
-    model = Segmenter(7, (4, 4, 8, 8, 8), stem=3, head=6).eval()
+    model = Segmenter(7, (4, 4, 8, 8, 8), stem=3, head=6, relief=True).eval()
     save_segmenter(model, tmp_path)
     back, no_card = load_segmenter(tmp_path)
     assert no_card == {}
-    assert back.config() == {"classes": 7, "widths": [4, 4, 8, 8, 8], "stem": 3, "head": 6}
+    assert back.config() == {"classes": 7, "widths": [4, 4, 8, 8, 8], "stem": 3, "head": 6,
+                             "relief": True}  # fmt: skip
     rgb, depth = torch.rand(1, 3, 32, 32) * 255, torch.rand(1, 1, 32, 32) * 3
     with torch.inference_mode():
         assert (model(rgb, depth).argmax(1) == back(rgb, depth).argmax(1)).float().mean() > 0.99
+
+
+def test_relief_reads_zero_on_a_slanted_plane_and_negative_on_a_box_standing_on_it():
+    import torch
+
+    from maniskill_tidy.models.segmenter import RELIEF_WINDOWS, relief
+
+    # a floor seen at a slant: disparity linear in the row, depth from 1 m to 5 m
+    rows = torch.arange(64, dtype=torch.float32)[:, None].expand(64, 64)
+    depth = 1.0 / (1.0 - rows * (0.8 / 63))
+    box = depth.clone()
+    box[30:36, 30:36] -= 0.05  # a box 5 cm proud of it
+    flat, proud = relief(depth[None, None]), relief(box[None, None])
+    assert flat.shape == (1, len(RELIEF_WINDOWS), 64, 64)
+    inner = (slice(None), slice(None), slice(12, 52), slice(12, 52))  # off the borders
+    assert flat[inner].abs().max() < 1e-3  # a plane reads 0, not its curvature in depth
+    assert (proud[0, :, 32, 32] < -0.2).all() and proud[0, -1, 32, 32] < -0.5  # widest window
 
 
 def test_zoomed_crops_show_objects_larger_and_nearer():

@@ -10,6 +10,7 @@ from maniskill_tidy.perception.instances import Mask2D, coarse
 from maniskill_tidy.perception.seg_classes import seg_classes
 from maniskill_tidy.perception.tracks import (
     Tracker,
+    clear_view,
     coarse_intrinsics,
     mask_position,
     mask_positions,
@@ -51,6 +52,41 @@ def test_masks_become_tracks_by_class_and_position():
     again = tracker.update(located(moved, depth, K, camera_at(0.3)), 1)
     assert [t.id for _, _, t in again] == [2, 1, 3]  # another class at the same place: new track
     assert tracker.tracks[2].sightings == 2 and tracker.tracks[3].cls == 9
+
+
+def test_clear_view_needs_the_point_in_frame_within_reach_and_nothing_in_front():
+    depth = np.full((100, 100), 2.0, dtype=np.float32)
+    depth[45:55, 70:80] = 0.5  # something near the camera, right of the middle
+    points = np.array([
+        [0.0, 0.0, 1.2],  # straight ahead, 1.2 m: shown
+        [0.0, 0.0, 1.9],  # ahead, beyond the 1.5 m reach
+        [0.3, 0.0, 1.2],  # behind the near thing (column 75)
+        [-0.7, 0.0, 1.2],  # left of the frame (column -8)
+        [0.0, 0.0, -1.0],  # behind the camera
+        [0.0, 0.0, 2.05],  # the wall itself, within 0.1 m of the depth there: shown
+    ])  # fmt: skip
+    got = clear_view(points, depth, K, camera_at(0.0), reach=1.5)
+    assert got.tolist() == [True, False, False, False, False, False]
+    assert clear_view(points, depth, K, camera_at(0.0), reach=3.0).tolist() == [
+        True, True, False, False, False, True
+    ]  # fmt: skip
+    # the camera 0.3 m to the right: the first point now lies left of the middle, still clear
+    assert clear_view(points[:1], depth, K, camera_at(0.3), reach=1.5).tolist() == [True]
+
+
+def test_a_track_counts_the_clear_views_it_was_seen_in_and_missed_in():
+    depth = np.full((100, 100), 2.0, dtype=np.float32)
+    depth[40:60, 40:60] = 1.0
+    tracker = Tracker()
+    mug = Mask2D(7, box(40, 60, 40, 60), 1.0)
+    tracker.update(located([mug], depth, K, camera_at(0.0)), 0)
+    assert tracker.looked_at(0, depth, K, camera_at(0.0), reach=1.5) == []
+    tracker.update([], 1)  # the detector missed it
+    (missed,) = tracker.looked_at(1, depth, K, camera_at(0.0), reach=1.5)
+    assert (missed.seen_clear, missed.missed_clear) == (1, 1)
+    far = camera_at(0.0)
+    far[2, 3] = 1.0  # the camera 1 m back: out of reach, neither counted
+    assert tracker.looked_at(2, depth, K, far, reach=1.5) == [] and missed.missed_clear == 1
 
 
 @pytest.fixture(scope="module")

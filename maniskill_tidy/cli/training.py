@@ -93,6 +93,8 @@ def _train_segmenter(args: argparse.Namespace) -> int:
         raise ValueError(f"--weight-power {args.weight_power}: expected 0 (unweighted) to 1")
     if args.objectness < 0:
         raise ValueError(f"--objectness {args.objectness}: expected 0 (none) or a positive weight")
+    if not 0 <= args.focus <= 1:
+        raise ValueError(f"--focus {args.focus}: expected a share of the crops, 0 to 1")
     if not 1 <= args.zoom <= 4:
         raise ValueError(f"--zoom {args.zoom}: expected 1 (none) to 4")
     if args.stem < 0 or args.head < 0:
@@ -104,7 +106,8 @@ def _train_segmenter(args: argparse.Namespace) -> int:
     extra = widths("widths", args.widths, count=5) if args.widths else {}
     cfg = SegTrainConfig(args.data, args.out, epochs=args.epochs, batch=args.batch,
                          crop=args.crop, seed=args.seed, stem=args.stem, head=args.head,
-                         zoom=args.zoom, weight_power=args.weight_power,
+                         zoom=args.zoom, relief=args.relief, focus=args.focus,
+                         weight_power=args.weight_power,
                          objectness=args.objectness, **extra)  # fmt: skip
     card = train_segmenter(cfg)
     t, v = card["test"], card["val"]
@@ -264,14 +267,27 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     ts.add_argument("--stem", type=int, default=0,
                     help="channels of a full-resolution convolution before the first stride "
                     "(0: none)")  # fmt: skip
-    ts.add_argument("--zoom", type=float, default=1.0,
-                    help="half the training crops blown up by up to this factor (1: none)")
+    ts.add_argument(
+        "--zoom",
+        type=float,
+        default=1.0,
+        help="half the training crops blown up by up to this factor (1: none)",
+    )
     ts.add_argument(
         "--head",
         type=int,
         default=0,
         help="channels of a hidden 1 x 1 layer before the class logits (0: none)",
     )
+    ts.add_argument(
+        "--focus",
+        type=float,
+        default=0.5,
+        help="share of the training crops centred on a pickupable object",
+    )
+    ts.add_argument("--relief", action="store_true",
+                    help="the depth's local relief (depth less its mean around) as input "
+                    "channels beside RGB-D")  # fmt: skip
     ts.add_argument("--weight-power", type=float, default=0.75,
                     help="class weights 1 / frequency ** this (0: unweighted)")  # fmt: skip
     ts.add_argument("--objectness", type=float, default=0.0,

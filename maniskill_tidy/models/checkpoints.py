@@ -234,6 +234,7 @@ def load_segmenter(folder: Path) -> tuple[Segmenter, dict]:
                               f"is {ours}): the object types changed; render and train it again "
                               "(make segmenter-data train-segmenter)")  # fmt: skip
     cfg = saved["config"]
-    model = Segmenter(cfg["classes"], tuple(cfg["widths"]), cfg.get("stem", 0), cfg.get("head", 0))
+    model = Segmenter(cfg["classes"], tuple(cfg["widths"]), cfg.get("stem", 0), cfg.get("head", 0),
+                      cfg.get("relief", False))  # fmt: skip
     model.load_state_dict(float_state(saved["state"]))
     return model.eval(), card

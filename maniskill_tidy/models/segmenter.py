@@ -21,6 +21,31 @@ from torch import nn
 from torch.nn import functional as F
 
 DEPTH_SCALE = 5.0  # metres: depth enters the network divided by this
+# ``relief``: depth less its mean over these windows (px), through tanh at this scale (metres)
+RELIEF_WINDOWS = (7, 21)
+RELIEF_SCALE = 0.05
+
+
+def box_mean(x: torch.Tensor, k: int) -> torch.Tensor:
+    """Mean over a k x k window (over the frame's pixels only at its borders), as two 1-D
+    passes: 2k additions per pixel in ONNX Runtime, not k * k."""
+    x = F.avg_pool2d(x, (1, k), 1, (0, k // 2), count_include_pad=False)
+    return F.avg_pool2d(x, (k, 1), 1, (k // 2, 0), count_include_pad=False)
+
+
+def relief(depth: torch.Tensor) -> torch.Tensor:
+    """How far each pixel stands in front of (negative) or behind the surface around it, in
+    metres along its ray, per window of ``RELIEF_WINDOWS``, squashed to -1..1: an object a few
+    centimetres tall on a table is 0.005 of depth / ``DEPTH_SCALE``, a difference the first
+    convolution hardly weighs next to colour (ranking masks by that contrast lifted val AP50:
+    research log). The surround is averaged in disparity, which is linear across the image on
+    any plane, so floors, walls and table tops seen at a slant read 0, not their curvature:
+    ``d * d * mean(1 / d) - d``."""
+    d = depth.clamp(min=0.05)
+    return torch.cat(
+        [torch.tanh((d * d * box_mean(1.0 / d, k) - d) / RELIEF_SCALE) for k in RELIEF_WINDOWS],
+        dim=1,
+    )
 
 
 def block(cin: int, cout: int, stride: int = 1) -> nn.Sequential:
@@ -44,18 +69,23 @@ class Segmenter(nn.Module):
         widths: tuple[int, ...] = (16, 24, 32, 48, 64),
         stem: int = 0,
         head: int = 0,
+        relief: bool = False,
     ) -> None:
         super().__init__()
         self.classes, self.widths, self.stem_width, self.head_width = (
             classes, tuple(widths), stem, head
         )  # fmt: skip
+        # ``relief``: the depth's local relief (:func:`relief`) enters beside RGB-D
+        self.relief = relief
+        inputs = 4 + (len(RELIEF_WINDOWS) if relief else 0)
         # ``stem`` > 0: one convolution at the frame's full resolution before the first stride,
         # so that a small object's detail reaches a learned filter before it is subsampled
         self.stem = nn.Identity() if not stem else nn.Sequential(
-            nn.Conv2d(4, stem, 3, 1, 1, bias=False), nn.BatchNorm2d(stem), nn.ReLU(inplace=True)
+            nn.Conv2d(inputs, stem, 3, 1, 1, bias=False), nn.BatchNorm2d(stem),
+            nn.ReLU(inplace=True),
         )  # fmt: skip
         self.down = nn.ModuleList()
-        cin = stem or 4
+        cin = stem or inputs
         for w in widths:  # stride 2, 4, 8, 16, 32
             self.down.append(block(cin, w, stride=2))
             cin = w
@@ -71,7 +101,10 @@ class Segmenter(nn.Module):
 
     def forward(self, rgb: torch.Tensor, depth: torch.Tensor) -> torch.Tensor:
         """``rgb`` (B, 3, H, W) in 0..255, ``depth`` (B, 1, H, W) in metres."""
-        x = self.stem(torch.cat([rgb / 127.5 - 1.0, depth / DEPTH_SCALE], dim=1))
+        parts = [rgb / 127.5 - 1.0, depth / DEPTH_SCALE]
+        if self.relief:
+            parts.append(relief(depth))
+        x = self.stem(torch.cat(parts, dim=1))
         skips = []
         for down in self.down:
             x = down(x)
@@ -85,7 +118,7 @@ class Segmenter(nn.Module):
 
     def config(self) -> dict:
         return {"classes": self.classes, "widths": list(self.widths), "stem": self.stem_width,
-                "head": self.head_width}  # fmt: skip
+                "head": self.head_width, "relief": self.relief}  # fmt: skip
 
 
 def predict(model: Segmenter, rgb: np.ndarray, depth_m: np.ndarray, batch: int = 16):

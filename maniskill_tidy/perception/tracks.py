@@ -32,6 +32,10 @@ class Track:
     sightings: int
     last_step: int
     votes: dict[int, float] = field(default_factory=dict)  # class -> summed scores
+    # frames that showed its position in clear view (:meth:`Tracker.looked_at`): with a
+    # sighting of it, and without
+    seen_clear: int = 0
+    missed_clear: int = 0
 
     @property
     def cls(self) -> int:
@@ -127,6 +131,36 @@ def mask_positions(
     return [None if np.isnan(p[0]) else p for p in found]
 
 
+def project(points: np.ndarray, intrinsics, extrinsics) -> tuple[np.ndarray, ...]:
+    """World points (N, 3) -> pixel columns and rows (nearest; pixel u lies at u, as
+    :func:`mask_position` back-projects), depth along the optical axis and distance from the
+    camera. Points behind the camera get column and row -1."""
+    E = np.asarray(extrinsics, dtype=np.float64)
+    cam = np.asarray(points, dtype=np.float64).reshape(-1, 3) @ E[:3, :3].T + E[:3, 3]
+    fx, fy, cx, cy = open3d_intrinsics(intrinsics).astype(np.float64)
+    z = cam[:, 2]
+    ahead = z > 1e-6
+    safe = np.where(ahead, z, 1.0)
+    u = np.where(ahead, np.rint(fx * cam[:, 0] / safe + cx), -1).astype(np.int64)
+    v = np.where(ahead, np.rint(fy * cam[:, 1] / safe + cy), -1).astype(np.int64)
+    return u, v, z, np.linalg.norm(cam, axis=1)
+
+
+def clear_view(points: np.ndarray, depth: np.ndarray, intrinsics, extrinsics, reach: float,
+               margin: int = 2) -> np.ndarray:  # fmt: skip
+    """Per world point (N, 3): whether the frame shows it, within ``reach`` metres of the
+    camera, ``margin`` pixels inside the border, with nothing more than 0.1 m nearer in front
+    of it (the pixel's depth)."""
+    u, v, z, dist = project(points, intrinsics, extrinsics)
+    d = depth.reshape(depth.shape[:2])
+    h, w = d.shape
+    inside = (z > 0.2) & (dist <= reach)
+    inside &= (u >= margin) & (u < w - margin) & (v >= margin) & (v < h - margin)
+    out = np.zeros(len(z), dtype=bool)
+    out[inside] = d[v[inside], u[inside]] > z[inside] - 0.1
+    return out
+
+
 class Tracker:
     """One agent's tracks; :meth:`update` with each frame's masks."""
 
@@ -172,3 +206,25 @@ class Tracker:
             t.votes[m.cls] = t.votes.get(m.cls, 0.0) + max(m.score, 1e-6)
             out.append((m, p, t))
         return out
+
+    def looked_at(self, step: int, depth: np.ndarray, intrinsics, extrinsics,
+                  reach: float) -> list[Track]:  # fmt: skip
+        """After this step's :meth:`update`: count, for every track whose position this frame
+        shows in clear view within ``reach`` (:func:`clear_view`), whether the update saw it.
+        A track missed where it should have been seen is evidence that nothing is there (a
+        false detection, or an object moved). Returns the tracks missed this time."""
+        tracks = list(self.tracks.values())
+        if not tracks:
+            return []
+        shown = clear_view(np.array([t.position for t in tracks]), depth, intrinsics,
+                           extrinsics, reach)  # fmt: skip
+        missed = []
+        for t, clear in zip(tracks, shown, strict=True):
+            if not clear:
+                continue
+            if t.last_step == step:
+                t.seen_clear += 1
+            else:
+                t.missed_clear += 1
+                missed.append(t)
+        return missed

@@ -16,10 +16,16 @@ what it would read in the ground-truth track, made from the agent's own frame al
 
 Its PickUp and PutDown targets become a pixel of the current frame (the env resolves it,
 ``targets="pixels"``): the pixel of the named object's mask nearest the mask's middle, or for a
-surface, the pixel of that furniture's mask whose point lies nearest the surface. A target not
-in view is aimed at no pixel (the env names the failure, as for an id not in view). A PickUp
+surface, the pixel of that furniture's mask whose point lies nearest the surface. An object
+the segmenter missed this frame is aimed at where its track lies, if the frame shows that spot
+in clear view within reach; a target not in view is aimed at no pixel (the env names the
+failure, as for an id not in view). A PickUp
 whose pixel showed no object at all (the env's failure says so, as a gripper closing on nothing
-would) refutes the track it aimed at: that track's masks are no longer shown to the team.
+would) refutes the track it aimed at: that track's masks are no longer shown to the team. So
+does looking: a track whose spot the frame showed in clear view within the arm's reach, and
+whose object the segmenter did not find there more often than it did (``MISSES``), is taken
+for a false detection made from afar (a multi-object tracker's deletion after missed
+detections, counted only where the object could not have hidden).
 """
 
 from __future__ import annotations
@@ -37,8 +43,10 @@ from maniskill_tidy.perception.seg_classes import STRUCTURE, seg_classes
 from maniskill_tidy.perception.tracks import (
     Tracker,
     camera_position,
+    clear_view,
     coarse_intrinsics,
     mask_positions,
+    project,
 )
 from maniskill_tidy.policies.base import Agent, AgentView, PublicInfo, Team
 from maniskill_tidy.policies.channel import Outbox
@@ -55,6 +63,10 @@ KEEP_THRESHOLD = 0.6
 REAIM = 0.6  # metres: a PickUp of an object out of view takes one of its type this close
 CONFIRM = 2  # frames an object must be seen in before the team is shown it
 FAILS = 2  # failed PickUps aimed at a track that refute it
+# a track whose spot was in clear view this close (metres: the arm's reach) and yet unseen
+# this many times, more often than seen there, is refuted: a false detection seen from afar
+VERIFY_RANGE = 1.5
+MISSES = 2
 PIXELS_OBSERVATION = "rgb+depth"
 
 
@@ -230,7 +242,15 @@ class PixelsAgent(Agent):
                 m.paint(seg, table.furniture[fid])
         starts = [m.score >= self.segmenter.threshold for m, _ in objects]
         self.in_frame = {}
-        for m, p, track in self.tracker.update(objects, step, starts):
+        located = self.tracker.update(objects, step, starts)
+        for t in self.tracker.looked_at(step, depth_g, K, E, VERIFY_RANGE):
+            if (
+                t.sightings >= CONFIRM
+                and t.missed_clear >= MISSES
+                and t.missed_clear > t.seen_clear
+            ):
+                self.refuted.add(t.id)
+        for m, p, track in located:
             if track.id in self.refuted or track.sightings < CONFIRM:
                 continue  # still tracked, so its sightings stay explained
             sid = table.object_id(track)
@@ -289,7 +309,8 @@ class PixelsAgent(Agent):
         if action.action == Action.PickUp:
             sid = self._in_view(self.table.by_id.get(action.target))
             self.aimed = sid
-            return Targeted(action.action, self._pixel(sid))
+            pixel = self._pixel(sid)
+            return Targeted(action.action, pixel if pixel != (-1, -1) else self._recalled(sid))
         fid, _, surface = str(action.target).partition("/")
         return Targeted(action.action, self._pixel(self.table.furniture.get(fid), surface, fid))
 
@@ -308,6 +329,21 @@ class PixelsAgent(Agent):
             if cls == track.cls and d <= dist:
                 best, dist = other, d
         return best
+
+    def _recalled(self, sid: int | None) -> tuple[int, int]:
+        """The pixel where the frame shows the spot of ``sid``'s track in clear view within
+        reach, though the segmenter found no mask of it this time; (-1, -1) if it shows none.
+        The gripper then closes on whatever lies there: the object, or nothing (which refutes
+        the track, as for any PickUp whose pixel showed no object)."""
+        tracks = self.table.tracks_of(sid) if sid is not None else []
+        if not tracks or tracks[-1] in self.refuted or self.points is None:
+            return (-1, -1)
+        depth, K, E = self.points
+        where = self.tracker.tracks[tracks[-1]].position[None]
+        if not clear_view(where, depth, K, E, VERIFY_RANGE)[0]:
+            return (-1, -1)
+        u, v, _, _ = project(where, K, E)
+        return int(u[0]), int(v[0])
 
     def _largest_object(self) -> int | None:
         ids, counts = np.unique(self.seg[self.seg >= OBJECT_BASE], return_counts=True)

@@ -63,6 +63,7 @@ class SegTrainConfig:
     # are which pixels are objects more than their type (research log); 0: none
     objectness: float = 0.0
     zoom: float = 1.0  # half the crops blown up by up to this factor (1: none)
+    relief: bool = False  # the depth's local relief as input channels (models/segmenter.py)
     limit: dict = field(default_factory=dict)  # split -> at most this many frames (tests)
 
 
@@ -241,7 +242,7 @@ def train_segmenter(cfg: SegTrainConfig, progress: bool = True) -> dict:
     train = load_split(data / "train", cfg.limit.get("train"))
     val = load_split(data / "val", cfg.limit.get("val", cfg.eval_frames))
     torch.manual_seed(cfg.seed)
-    model = Segmenter(len(classes.names), cfg.widths, cfg.stem, cfg.head)
+    model = Segmenter(len(classes.names), cfg.widths, cfg.stem, cfg.head, cfg.relief)
     optimiser = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=1e-4)
     steps = cfg.epochs * max(1, len(train["rgb"]) // cfg.batch)
     schedule = torch.optim.lr_scheduler.OneCycleLR(optimiser, cfg.lr, total_steps=steps)
