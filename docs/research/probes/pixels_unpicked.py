@@ -1,0 +1,107 @@
+"""Why a pixels team leaves detected objects where they are: for each misplaced object an agent's
+mask of its type covered (``pixels-losses``: "detected"), how far the team's own memory took
+it. Which agents showed it (and whether one could pick up), whether an agent's memory held it
+and judged it misplaced, whether a manipulator took a job to fetch it, and how its PickUps
+ended. Tells "the team never knew it was misplaced" from "it went for it and failed".
+
+    .venv/bin/python docs/research/probes/pixels_unpicked.py --policy memory \\
+        --dataset data/tidy120 --episodes 12
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections import Counter, defaultdict
+
+from maniskill_tidy.envs.actions import Action, Targeted
+from maniskill_tidy.eval.episode import play_episode
+from maniskill_tidy.eval.pixels_losses import PixelsLosses
+from maniskill_tidy.eval.runner import RunConfig, make_env, make_run_team, select
+
+
+class Unpicked(PixelsLosses):
+    """``pixels-losses``' observer, also following each object's slots into the agents'
+    memories (``HeuristicAgent.objects``), jobs and PickUps."""
+
+    def start(self, env, team, channel) -> None:
+        super().start(env, team, channel)
+        self.flags: dict[str, set[str]] = defaultdict(set)
+        self.pickups: dict[str, Counter] = defaultdict(Counter)
+        self.aimed: dict[str, str] = {}  # agent -> object its PickUp this step aimed at
+
+    def decided(self, t, actions, labels) -> None:
+        super().decided(t, actions, labels)
+        self.aimed = {}
+        for oid in self.misplaced:
+            for name, sid in self.slots[oid]:
+                agent = self.agents[name]
+                inner, slot_id = agent.inner, agent.table.instances[sid].id
+                manip = "manipulator" if inner.manipulator else "other"
+                self.flags[oid].add(f"shown to a {manip}")
+                known = inner.objects.get(slot_id)
+                if known is not None:
+                    self.flags[oid].add(f"in a {manip}'s memory")
+                    if known.misplaced:
+                        self.flags[oid].add(f"judged misplaced by a {manip}")
+                job = inner.job
+                if job is not None and job.kind == "pick" and job.target == slot_id:
+                    self.flags[oid].add("a manipulator's pick job")
+                a = actions.get(name)
+                if isinstance(a, Targeted) and a.action == Action.PickUp and a.target != (-1, -1):
+                    if agent.aimed == sid:
+                        self.aimed[name] = oid
+
+    def log_step(self, t, obs, actions, info, channel, labels) -> None:
+        super().log_step(t, obs, actions, info, channel, labels)
+        for name, oid in self.aimed.items():
+            reason = info.get("failed", {}).get(name, "")
+            self.pickups[oid][reason.split(":")[-1].strip()[:40] if reason else "picked"] += 1
+
+
+STAGES = (
+    "shown to a manipulator",
+    "in a manipulator's memory",
+    "judged misplaced by a manipulator",
+    "a manipulator's pick job",
+)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--policy", default="memory")
+    ap.add_argument("--dataset", default="data/tidy120")
+    ap.add_argument("--segmentation", default="learned")
+    ap.add_argument("--episodes", type=int, default=12)
+    args = ap.parse_args()
+    cfg = RunConfig(args.policy, "I", "test", args.dataset, args.episodes,
+                    env="HeteroTidy-v2", segmentation=args.segmentation)  # fmt: skip
+    env, team = make_env(cfg), make_run_team(cfg)
+    reached: Counter = Counter()
+    outcomes: Counter = Counter()
+    fates: Counter = Counter()
+    try:
+        for i in select([e.start for e in env.unwrapped.episodes.episodes], args.episodes):
+            log = Unpicked()
+            record = play_episode(env, team, i, i, [log])
+            for o, oid in zip(log.result()["objects"], log.misplaced, strict=True):
+                fates[o["fate"]] += 1
+                if o["fate"] != "detected, not picked":
+                    continue
+                last = next(
+                    (s for s in reversed(STAGES) if s in log.flags[oid]), "shown only to others"
+                )
+                reached[last] += 1
+                outcomes.update(log.pickups[oid])
+                print(f"{record.episode} {o['type']}: {sorted(log.flags[oid])} "
+                      f"pickups {dict(log.pickups[oid])}")  # fmt: skip
+    finally:
+        env.close()
+    print("fates:", dict(fates))
+    print("detected, not picked: the furthest each got")
+    for s in ("shown only to others", *STAGES):
+        print(f"  {reached[s]:3d}  {s}")
+    print("their PickUps:", dict(outcomes))
+
+
+if __name__ == "__main__":
+    main()
