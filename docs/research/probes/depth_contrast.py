@@ -9,32 +9,26 @@ contrast over a scale (what ``perception/instances.py: scored_by_contrast`` does
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
-from pathlib import Path
 
 import numpy as np
+import segmenter_probe
 
 from maniskill_tidy.envs.actions import MIN_PIXELS
 from maniskill_tidy.eval.mask_ap import mask_ap, score_threshold
-from maniskill_tidy.models import checkpoints
 from maniskill_tidy.models.segmenter import predict
 from maniskill_tidy.perception.instances import coarse, depth_contrast, split_instances
 from maniskill_tidy.perception.seg_classes import seg_classes
-from maniskill_tidy.training.segmenter_trainer import load_split, truth_masks
+from maniskill_tidy.training.segmenter_trainer import truth_masks
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("weights")
-    ap.add_argument("--data", default="data/segmenter/HeteroTidy-v2/val")
-    ap.add_argument("--frames", type=int, default=400)
-    args = ap.parse_args()
+    args = segmenter_probe.arguments(__doc__)
     c = seg_classes()
     pick = [i for i in range(len(c.names)) if c.is_pickupable(i)]
-    frames = load_split(Path(args.data), args.frames)
+    frames = segmenter_probe.frames(args)
     depth = frames["depth_mm"].astype(np.float32) / 1000
-    model = checkpoints.load_segmenter(Path(args.weights))[0]
+    model = segmenter_probe.segmenter(args)[0]
     labels, probs = predict(model, frames["rgb"], depth)
     step = depth.shape[1] // labels.shape[1]
     rows = []  # per frame: truth, [(mask on the grid, its contrast)]

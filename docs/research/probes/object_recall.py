@@ -9,32 +9,26 @@ made as agents make them), beside the typed AP.
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
-from pathlib import Path
 
 import numpy as np
+import segmenter_probe
 
 from maniskill_tidy.envs.actions import MIN_PIXELS
 from maniskill_tidy.eval.mask_ap import mask_ap
-from maniskill_tidy.models import checkpoints
 from maniskill_tidy.models.segmenter import predict, upsample
 from maniskill_tidy.perception.seg_classes import seg_classes
-from maniskill_tidy.training.segmenter_trainer import instance_pairs, load_split
+from maniskill_tidy.training.segmenter_trainer import instance_pairs
 
 SIZES = ((20, 100), (100, 400), (400, 1600), (1600, None))  # pixels of the 224 px frame
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("weights")
-    ap.add_argument("--data", default="data/segmenter/HeteroTidy-v2/val")
-    ap.add_argument("--frames", type=int, default=400)
-    args = ap.parse_args()
+    args = segmenter_probe.arguments(__doc__)
     c = seg_classes()
     pickupable = np.array([c.is_pickupable(i) and i > 0 for i in range(256)])
-    frames = load_split(Path(args.data), args.frames)
-    model = checkpoints.load_segmenter(Path(args.weights))[0]
+    frames = segmenter_probe.frames(args)
+    model = segmenter_probe.segmenter(args)[0]
     depth = frames["depth_mm"].astype(np.float32) / 1000
     labels = upsample(*predict(model, frames["rgb"], depth), depth.shape[1:3])[0]
     rows = []  # (area, share called an object, share called its type)

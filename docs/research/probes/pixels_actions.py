@@ -11,15 +11,13 @@ detection that is not there.
 
 from __future__ import annotations
 
-import argparse
 import re
 from collections import Counter
 
 import numpy as np
+import pixels_probe
 
 from maniskill_tidy.envs.actions import MIN_PIXELS, Action, Targeted
-from maniskill_tidy.eval.episode import play_episode
-from maniskill_tidy.eval.runner import RunConfig, make_env, make_run_team, select
 
 
 def kind(reason: str) -> str:
@@ -84,29 +82,16 @@ class ActionOutcomes:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--policy", default="heuristic-none")
-    ap.add_argument("--dataset", default="data/tidy120")
-    ap.add_argument("--segmentation", default="learned")
-    ap.add_argument("--episodes", type=int, default=4)
-    args = ap.parse_args()
-    cfg = RunConfig(args.policy, "I", "test", args.dataset, args.episodes,
-                    env="HeteroTidy-v2", segmentation=args.segmentation)  # fmt: skip
-    env, team = make_env(cfg), make_run_team(cfg)
+    args = pixels_probe.arguments(__doc__, "heuristic-none", 4)
     total: Counter = Counter()
-    try:
-        for i in select([e.start for e in env.unwrapped.episodes.episodes], args.episodes):
-            log = ActionOutcomes()
-            record = play_episode(env, team, i, i, [log])
-            real = sum(log.slots.values())
-            log.counts["slots shown: real objects"] += real
-            log.counts["slots shown: never an object of their type"] += len(log.slots) - real
-            print(f"{record.episode}: success {record.success}, placed {record.reasonable}")
-            for k, v in sorted(log.counts.items()):
-                print(f"  {v:4d}  {k}")
-            total.update(log.counts)
-    finally:
-        env.close()
+    for record, log in pixels_probe.played(args, ActionOutcomes):
+        real = sum(log.slots.values())
+        log.counts["slots shown: real objects"] += real
+        log.counts["slots shown: never an object of their type"] += len(log.slots) - real
+        print(f"{record.episode}: success {record.success}, placed {record.reasonable}")
+        for k, v in sorted(log.counts.items()):
+            print(f"  {v:4d}  {k}")
+        total.update(log.counts)
     print("all:")
     for k, v in sorted(total.items()):
         print(f"  {v:4d}  {k}")

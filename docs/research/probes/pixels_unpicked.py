@@ -10,13 +10,12 @@ ended. Tells "the team never knew it was misplaced" from "it went for it and fai
 
 from __future__ import annotations
 
-import argparse
 from collections import Counter, defaultdict
 
+import pixels_probe
+
 from maniskill_tidy.envs.actions import Action, Targeted
-from maniskill_tidy.eval.episode import play_episode
 from maniskill_tidy.eval.pixels_losses import PixelsLosses
-from maniskill_tidy.eval.runner import RunConfig, make_env, make_run_team, select
 
 
 class Unpicked(PixelsLosses):
@@ -67,35 +66,22 @@ STAGES = (
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--policy", default="memory")
-    ap.add_argument("--dataset", default="data/tidy120")
-    ap.add_argument("--segmentation", default="learned")
-    ap.add_argument("--episodes", type=int, default=12)
-    args = ap.parse_args()
-    cfg = RunConfig(args.policy, "I", "test", args.dataset, args.episodes,
-                    env="HeteroTidy-v2", segmentation=args.segmentation)  # fmt: skip
-    env, team = make_env(cfg), make_run_team(cfg)
+    args = pixels_probe.arguments(__doc__, "memory", 12)
     reached: Counter = Counter()
     outcomes: Counter = Counter()
     fates: Counter = Counter()
-    try:
-        for i in select([e.start for e in env.unwrapped.episodes.episodes], args.episodes):
-            log = Unpicked()
-            record = play_episode(env, team, i, i, [log])
-            for o, oid in zip(log.result()["objects"], log.misplaced, strict=True):
-                fates[o["fate"]] += 1
-                if o["fate"] != "detected, not picked":
-                    continue
-                last = next(
-                    (s for s in reversed(STAGES) if s in log.flags[oid]), "shown only to others"
-                )
-                reached[last] += 1
-                outcomes.update(log.pickups[oid])
-                print(f"{record.episode} {o['type']}: {sorted(log.flags[oid])} "
-                      f"pickups {dict(log.pickups[oid])}")  # fmt: skip
-    finally:
-        env.close()
+    for record, log in pixels_probe.played(args, Unpicked):
+        for o, oid in zip(log.result()["objects"], log.misplaced, strict=True):
+            fates[o["fate"]] += 1
+            if o["fate"] != "detected, not picked":
+                continue
+            last = next(
+                (s for s in reversed(STAGES) if s in log.flags[oid]), "shown only to others"
+            )
+            reached[last] += 1
+            outcomes.update(log.pickups[oid])
+            print(f"{record.episode} {o['type']}: {sorted(log.flags[oid])} "
+                  f"pickups {dict(log.pickups[oid])}")  # fmt: skip
     print("fates:", dict(fates))
     print("detected, not picked: the furthest each got")
     for s in ("shown only to others", *STAGES):

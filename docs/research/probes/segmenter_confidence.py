@@ -16,23 +16,21 @@ Its AP is therefore not the card's (`train-segmenter` scores instances as agents
 
 from __future__ import annotations
 
-import argparse
 import io
 import time
 import warnings
-from pathlib import Path
 
 import numpy as np
+import segmenter_probe
 import torch
 from torch import nn
 
 from maniskill_tidy.envs.actions import MIN_PIXELS
 from maniskill_tidy.eval.mask_ap import mask_ap
-from maniskill_tidy.models import checkpoints
 from maniskill_tidy.models.segmenter import upsample
 from maniskill_tidy.perception.instances import split_instances
 from maniskill_tidy.perception.seg_classes import seg_classes
-from maniskill_tidy.training.segmenter_trainer import load_split, truth_masks
+from maniskill_tidy.training.segmenter_trainer import truth_masks
 
 
 def confidence(logits: torch.Tensor, kind: str) -> tuple[torch.Tensor, torch.Tensor]:
@@ -94,13 +92,9 @@ def ms_per_frame(model: nn.Module, kind: str, repeats: int = 6) -> float:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("weights")
-    ap.add_argument("--data", default="data/segmenter/HeteroTidy-v2/val")
-    ap.add_argument("--frames", type=int, default=400)
-    args = ap.parse_args()
-    model = checkpoints.load_segmenter(Path(args.weights))[0]
-    frames = load_split(Path(args.data), args.frames)
+    args = segmenter_probe.arguments(__doc__)
+    model = segmenter_probe.segmenter(args)[0]
+    frames = segmenter_probe.frames(args)
     classes = seg_classes()
     pick = [i for i in range(len(classes.names)) if classes.is_pickupable(i)]
     depth = frames["depth_mm"].astype(np.float32) / 1000

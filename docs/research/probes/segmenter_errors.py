@@ -11,15 +11,13 @@ threshold) and their median size and confidence.
 
 from __future__ import annotations
 
-import argparse
 from collections import Counter
-from pathlib import Path
 
 import numpy as np
+import segmenter_probe
 
-from maniskill_tidy.models import checkpoints
 from maniskill_tidy.perception.seg_classes import seg_classes
-from maniskill_tidy.training.segmenter_trainer import evaluate, instance_pairs, load_split
+from maniskill_tidy.training.segmenter_trainer import evaluate, instance_pairs
 
 
 def what_lies_under(mask, truth, cls, classes) -> str:
@@ -40,22 +38,18 @@ def what_lies_under(mask, truth, cls, classes) -> str:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("weights")
-    ap.add_argument("--data", default="data/segmenter/HeteroTidy-v2")
-    ap.add_argument("--frames", type=int, default=400)
-    args = ap.parse_args()
-    model, card = checkpoints.load_segmenter(Path(args.weights))
+    args = segmenter_probe.arguments(__doc__, "data/segmenter/HeteroTidy-v2")
+    model, card = segmenter_probe.segmenter(args)
     threshold = card.get("agent_threshold", {}).get("threshold", 0.0)
     for split in ("train", "val"):
-        s = evaluate(model, load_split(Path(args.data) / split, args.frames))
+        s = evaluate(model, segmenter_probe.frames(args, split))
         print(
             f"{split}: mask AP50 {s['AP50']:.3f}, AP {s['AP']:.3f}, small {s['AP_small']:.3f}; "
             f"pixel accuracy on objects {s['pixel_accuracy_pickupable']:.2f}, overall "
             f"{s['pixel_accuracy']:.2f}; {s['predicted']} masks for {s['truth']} objects"
         )
     classes = seg_classes()
-    frames = load_split(Path(args.data) / "val", args.frames)
+    frames = segmenter_probe.frames(args, "val")
     kinds: Counter = Counter()
     scores: dict[str, list] = {}
     areas: dict[str, list] = {}

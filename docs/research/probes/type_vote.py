@@ -10,18 +10,15 @@ of each.
 
 from __future__ import annotations
 
-import argparse
-from pathlib import Path
-
 import numpy as np
+import segmenter_probe
 from scipy import ndimage
 
 from maniskill_tidy.envs.actions import MIN_PIXELS
 from maniskill_tidy.eval.mask_ap import mask_ap, score_threshold
-from maniskill_tidy.models import checkpoints
 from maniskill_tidy.perception.instances import depth_edges
 from maniskill_tidy.perception.seg_classes import seg_classes
-from maniskill_tidy.training.segmenter_trainer import instance_pairs, load_split
+from maniskill_tidy.training.segmenter_trainer import instance_pairs
 
 
 def vote_types(
@@ -53,15 +50,11 @@ def vote_types(
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("weights")
-    ap.add_argument("--data", default="data/segmenter/HeteroTidy-v2/val")
-    ap.add_argument("--frames", type=int, default=400)
-    args = ap.parse_args()
+    args = segmenter_probe.arguments(__doc__)
     classes = seg_classes()
     pickupable = [i for i in range(len(classes.names)) if classes.is_pickupable(i)]
-    frames = load_split(Path(args.data), args.frames)
-    model = checkpoints.load_segmenter(Path(args.weights))[0]
+    frames = segmenter_probe.frames(args)
+    model = segmenter_probe.segmenter(args)[0]
     shape = frames["rgb"].shape[1:3]
 
     def voted(labels, probs, depth):
