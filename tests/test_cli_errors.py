@@ -340,3 +340,9 @@ def test_train_segmenter_refuses_options_out_of_range_before_reading_frames(tmp_
     p = cli("train-segmenter", "--data", str(tmp_path / "none"), "--out", str(out), option, value)
     one_line_error(p, option, "expected")
     assert not out.exists()
+
+
+def test_quantize_segmenter_refuses_a_folder_without_a_trained_segmenter(tmp_path):
+    p = cli("quantize-segmenter", "--segmenter", str(tmp_path / "none"), "--data", str(tmp_path))
+    one_line_error(p, "card.json not found", "train-segmenter")
+    assert not (tmp_path / "none").exists()

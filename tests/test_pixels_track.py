@@ -130,7 +130,7 @@ def test_a_pixels_run_is_its_own_row_records_its_segmenter_and_replays(segmenter
     cfg = RunConfig("heuristic-none", "I", "test", None, episodes=1,
                     segmentation=str(segmenter))  # fmt: skip
     a = evaluate(cfg, tmp_path / "a", workers=1, progress=False)
-    sha = json.loads((segmenter / "card.json").read_text())["weights_sha256"]
+    sha = json.loads((segmenter / "card.json").read_text())["int8"]["sha256"]  # what ran
     assert a["segmentation"] == f"learned:{sha}" and a["obs_mode"] == "rgb+depth"
     assert a["policy"] == "heuristic-none-pixels-segmenter-tiny"
     evaluate(cfg, tmp_path / "b", workers=1, progress=False)
@@ -188,4 +188,4 @@ def test_a_segmenter_of_another_class_table_is_refused(segmenter, tmp_path):
     with pytest.raises(ValueError, match="another class table"):
         Segmenter(str(other))
     own = json.loads((segmenter / "card.json").read_text())
-    assert Segmenter(str(segmenter)).sha256 == own["weights_sha256"]  # its own table: loads
+    assert Segmenter(str(segmenter)).sha256 == own["int8"]["sha256"]  # its own table: loads

@@ -1,6 +1,6 @@
-"""The pixels track's segmenter trains on a tiny render, writes its card and fp16 weights,
-resumes after a kill to the same result, loads back as it was selected, and runs the same
-through ONNX Runtime."""
+"""The pixels track's segmenter trains on a tiny render, writes its card, fp16 weights and the
+int8 graph agents run, resumes after a kill to the same result, loads back as it was selected,
+and runs the same through ONNX Runtime."""
 
 from __future__ import annotations
 
@@ -67,6 +67,7 @@ def test_a_tiny_segmenter_trains_resumes_and_loads(tiny_data, tmp_path, monkeypa
     resumed = st.train_segmenter(_cfg(tiny_data, tmp_path / "b"), progress=False)
     assert resumed["curve"] == card["curve"] and resumed["test"] == card["test"]
     assert resumed["weights_sha256"] == card["weights_sha256"]
+    assert resumed["int8"]["sha256"] == card["int8"]["sha256"]  # the same calibration, graph
 
     model, card_back = load_segmenter(tmp_path / "a")
     assert card_back["weights_sha256"] == card["weights_sha256"]  # the card comes with it
@@ -86,6 +87,40 @@ def test_a_tiny_segmenter_trains_resumes_and_loads(tiny_data, tmp_path, monkeypa
     # the agents' frames in one batch: each frame's labels are those it gets alone
     alone = [Runtime(model)(z_rgb[i : i + 1], z_depth[i : i + 1])[0][0] for i in range(2)]
     assert all((ort_labels[i] == alone[i]).all() for i in range(2))
+
+    # agents run the int8 graph the card names, and the card scores it; the fp16 weights'
+    # own scores stay beside
+    from maniskill_tidy.common.files import file_sha256
+    from maniskill_tidy.models.checkpoints import CheckpointError, served_segmenter, served_sha256
+
+    graph = tmp_path / "a" / "model.int8.onnx"
+    assert card["int8"]["sha256"] == file_sha256(graph) == served_sha256(tmp_path / "a")
+    assert card["int8"]["fp16_torch"]["test"]["truth"] == card["test"]["truth"]
+    runtime, sha, _ = served_segmenter(tmp_path / "a")
+    int8_labels, int8_probs = runtime(z_rgb, z_depth)
+    assert sha == card["int8"]["sha256"] and int8_labels.shape == labels.shape
+    assert (int8_labels == labels).mean() > 0.9  # int8 rounding moves a few labels, not most
+    assert (int8_labels != labels).any() or (int8_probs != probs).any()  # not the fp32 graph
+    blob = graph.read_bytes()
+    graph.write_bytes(blob[:-1] + bytes([blob[-1] ^ 1]))  # a damaged or substituted graph
+    with pytest.raises(CheckpointError, match="int8.sha256"):
+        served_sha256(tmp_path / "a")
+    graph.unlink()
+    with pytest.raises(CheckpointError, match="missing.*quantize-segmenter"):
+        served_segmenter(tmp_path / "a")
+    graph.write_bytes(blob)
+    # a card from before the int8 graph: its agents run the fp16 weights, its runs record them
+    card_path = tmp_path / "a" / "card.json"
+    plain = json.loads(card_path.read_text())
+    plain.pop("int8")
+    card_path.write_text(json.dumps(plain))
+    assert served_sha256(tmp_path / "a") == card["weights_sha256"]
+    from maniskill_tidy.cli import main
+
+    assert main(["quantize-segmenter", "--segmenter", str(tmp_path / "a"), "--data",
+                 str(tiny_data)]) == 0  # fmt: skip
+    assert served_sha256(tmp_path / "a") == card["int8"]["sha256"]
+    card_path.write_text(json.dumps(card))
 
     # scored again with unchanged code: the same figures, the earlier ones kept beside them
     again = st.rescore(tmp_path / "a", tiny_data)
@@ -201,7 +236,7 @@ def test_the_cross_look_table_scores_each_segmenter_on_each_look(tiny_data, tmp_
     rows = cross_look([tmp_path / "seg"], data, progress=False)
     assert [(r["trained_on"], r["tested_on"]) for r in rows] == [("HeteroTidy-v1",) * 2]
     assert all(rows[0][k] == card["test"][k] for k in ("AP50", "AP", "pixel_accuracy_pickupable"))
-    assert rows[0]["weights_sha256"] == card["weights_sha256"]
+    assert rows[0]["served_sha256"] == card["int8"]["sha256"]  # what agents run
     js, md = write_table(rows, tmp_path / "table" / "cross")
     assert json.loads(js.read_text()) == rows
     assert "| HeteroTidy-v1 | HeteroTidy-v1 |" in md.read_text()

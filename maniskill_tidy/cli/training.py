@@ -117,6 +117,18 @@ def _train_segmenter(args: argparse.Namespace) -> int:
     return 0
 
 
+def _quantize_segmenter(args: argparse.Namespace) -> int:
+    from maniskill_tidy.training.segmenter_trainer import quantize
+
+    card = quantize(args.segmenter, args.data)
+    v, t, f = card["val"], card["test"], card["int8"]["fp16_torch"]
+    print(f"{args.segmenter}/{card['int8']['file']} (sha256 {card['int8']['sha256'][:12]}): val "
+          f"mask AP50 {v['AP50']:.3f} (fp16 torch {f['val']['AP50']:.3f}); test AP "
+          f"{t['AP']:.3f}, AP50 {t['AP50']:.3f} (fp16 torch {f['test']['AP50']:.3f}); agent "
+          f"threshold {card['agent_threshold']['threshold']:.3f}")  # fmt: skip
+    return 0
+
+
 def _segmenter_cross_look(args: argparse.Namespace) -> int:
     from maniskill_tidy.common.agent_files import resolve
     from maniskill_tidy.training.segmenter_cross_look import cross_look, write_table
@@ -297,6 +309,18 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                     help="score the trained segmenter in --out again on --data's val and test "
                     "frames (its card's val, test and agent threshold)")  # fmt: skip
     ts.set_defaults(func=_train_segmenter)
+
+    qs = sub.add_parser(
+        "quantize-segmenter",
+        help="the int8 graph agents run beside a trained segmenter (train-segmenter makes it "
+        "too), its card scored through it",
+    )  # fmt: skip
+    qs.add_argument("--segmenter", required=True,
+                    help="a trained segmenter, e.g. agents/segmenter-v2")  # fmt: skip
+    qs.add_argument("--data", required=True,
+                    help="the segmenter-data folder it was trained on (val calibrates and "
+                    "selects, test reports)")  # fmt: skip
+    qs.set_defaults(func=_quantize_segmenter)
 
     cl = sub.add_parser(
         "segmenter-cross-look",

@@ -60,12 +60,11 @@ def masks_figure(out: Path, segmenter: str, env_id: str = "HeteroTidy-v2",
 
     from maniskill_tidy.common.plotting import save_figure
     from maniskill_tidy.eval.episode import Execution
-    from maniskill_tidy.models.checkpoints import load_segmenter
-    from maniskill_tidy.models.segmenter import Runtime, upsample
+    from maniskill_tidy.models.checkpoints import served_segmenter
+    from maniskill_tidy.models.segmenter import upsample
     from maniskill_tidy.policies import make_team
 
-    model, card = load_segmenter(segmenter)
-    runtime = Runtime(model, 2)
+    runtime, _, card = served_segmenter(segmenter, 2)  # what agents run
     classes = seg_classes()
     env = gym.make(env_id, setting="I", dataset=dataset, split=split,
                    obs_mode="rgb+depth+segmentation")  # fmt: skip

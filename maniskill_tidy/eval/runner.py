@@ -275,15 +275,14 @@ def evaluate(
         raise FileNotFoundError(missing)
     segmentation = "ground-truth"
     if cfg.pixels:
-        from maniskill_tidy.models.checkpoints import verify, weights_sha256
+        from maniskill_tidy.models.checkpoints import served_sha256
 
         if team_cls.privileged or not team_cls.needs_images:
             raise ValueError(
                 f"--segmentation {cfg.segmentation}: {cfg.policy} does not look "
                 "through cameras; the pixels track is for camera-only teams"
             )
-        verify(cfg.segmenter(), "make train-segmenter")
-        segmentation = f"learned:{weights_sha256(cfg.segmenter())}"
+        segmentation = f"learned:{served_sha256(cfg.segmenter())}"  # checks the files
     # As the env does: the smallest setting that fits the team gives the starts (for SA, one
     # manipulator, that is Setting I's first start).
     episodes = EpisodeSet(cfg.dataset, cfg.split, cfg.task_type, None, members)

@@ -1,5 +1,5 @@
-"""Saving and loading trained models: the decision team, the perception model, QMIX and the
-object-memory pointer.
+"""Saving and loading trained models: the decision team, the perception model, QMIX, the
+object-memory pointer and the pixels track's segmenter (its weights and the int8 graph agents run).
 
 Training writes these files, evaluation reads them; both sides import this module, so a team
 never reaches up into ``training/`` to load its weights. Weights are stored in fp16 next to
@@ -36,6 +36,7 @@ if TYPE_CHECKING:
 
 WEIGHTS = "model.pt"
 CARD = "card.json"
+INT8 = "model.int8.onnx"  # a segmenter's graph as agents run it (``models/segmenter.py``)
 
 
 class CheckpointError(ValueError):
@@ -238,3 +239,38 @@ def load_segmenter(folder: Path) -> tuple[Segmenter, dict]:
                       cfg.get("relief", False))  # fmt: skip
     model.load_state_dict(float_state(saved["state"]))
     return model.eval(), card
+
+
+def save_segmenter_int8(folder: Path, graph: bytes) -> str:
+    """The int8 graph agents run beside the weights (atomically); its sha256, for the card."""
+    write_atomic(Path(folder) / INT8, graph)
+    return file_sha256(Path(folder) / INT8)
+
+
+def served_sha256(folder: Path) -> str:
+    """The sha256 a pixels run records of what its agents run, after checking the files: the
+    int8 graph's when the card names one (``int8.sha256``), else the weights'."""
+    verify(folder, "make train-segmenter")
+    card_path = Path(folder) / CARD
+    int8 = json.loads(card_path.read_text()).get("int8") if card_path.is_file() else None
+    if not int8:
+        return weights_sha256(folder)
+    path = Path(folder) / INT8
+    if not path.is_file() or file_sha256(path) != int8["sha256"]:
+        state = "missing" if not path.is_file() else "sha256 differs from its card's int8.sha256"
+        raise CheckpointError(f"{path}: {state}; make it again with `maniskill-tidy "
+                              f"quantize-segmenter --segmenter {folder}`")  # fmt: skip
+    return int8["sha256"]
+
+
+def served_segmenter(folder: Path, threads: int = 1):
+    """What agents run of a segmenter (:class:`models.segmenter.Runtime` on ``threads``), the
+    sha256 its runs record (:func:`served_sha256`) and its card: the int8 graph the card names,
+    else the fp16 weights exported as they load."""
+    from maniskill_tidy.models.segmenter import Runtime
+
+    sha = served_sha256(folder)
+    model, card = load_segmenter(folder)
+    if card.get("int8"):
+        return Runtime((Path(folder) / INT8).read_bytes(), threads), sha, card
+    return Runtime(model, threads), sha, card

@@ -76,12 +76,10 @@ class Segmenter:
     _loaded: ClassVar[dict] = {}
 
     def __init__(self, folder: str) -> None:
-        from maniskill_tidy.models.checkpoints import load_segmenter, weights_sha256
-        from maniskill_tidy.models.segmenter import Runtime
+        from maniskill_tidy.models.checkpoints import served_segmenter
 
         if folder not in self._loaded:  # the threads the renderer may use in this process
-            model, card = load_segmenter(folder)
-            self._loaded[folder] = (Runtime(model, render_threads()), weights_sha256(folder), card)
+            self._loaded[folder] = served_segmenter(folder, render_threads())
         self.runtime, self.sha256, card = self._loaded[folder]
         # object masks less confident than this are left out (the card's, chosen on val)
         chosen = card.get("agent_threshold")

@@ -3,9 +3,10 @@
 ``maniskill-tidy segmenter-cross-look --segmenters agents/segmenter-v1 agents/segmenter-v2``
 scores each segmenter on the test houses' frames that ``segmenter-data`` rendered in each look
 (``data/segmenter/HeteroTidy-v1/test``, ``.../HeteroTidy-v2/test``), as its card scores its own
-look (``segmenter_trainer.evaluate``: instances as agents make them, fp16 weights), and writes
-the table as JSON and markdown. The diagonal repeats the cards' test figures; off it, what a
-segmenter trained on one look keeps on the other: how much of what it learnt is the look.
+look (``segmenter_trainer.evaluate``: instances as agents make them, through the graph agents
+run), and writes the table as JSON and markdown. The diagonal repeats the cards' test figures;
+off it, what a segmenter trained on one look keeps on the other: how much of what it learnt is
+the look.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import torch
 from tqdm import tqdm
 
 from maniskill_tidy.common.files import write_atomic
@@ -30,7 +32,8 @@ def cross_look(segmenters: list[Path], data: Path, split: str = "test",
     if not looks:
         raise FileNotFoundError(f"{data}: no <look>/{split}/manifest.json; render the frames "
                                 "with `make segmenter-data`")  # fmt: skip
-    models = {Path(s): checkpoints.load_segmenter(Path(s)) for s in segmenters}
+    threads = torch.get_num_threads()  # what agents run: the int8 graph where one ships
+    models = {Path(s): checkpoints.served_segmenter(Path(s), threads) for s in segmenters}
     rows = []
     bar = tqdm(total=len(models) * len(looks), unit="pair", disable=not progress,
                desc="cross-look")  # fmt: skip
@@ -38,12 +41,12 @@ def cross_look(segmenters: list[Path], data: Path, split: str = "test",
         for look in looks:
             frames = load_split(Path(data) / look / split)
             manifest = json.loads((Path(data) / look / split / "manifest.json").read_text())
-            for folder, (model, card) in models.items():
+            for folder, (model, sha256, card) in models.items():
                 scores = evaluate(model, frames)
                 rows.append({"segmenter": str(folder), "trained_on": card.get("look", "?"),
                              "tested_on": look, "split": split,
                              "frames": len(frames["rgb"]), "data_hash": manifest["data_hash"],
-                             "weights_sha256": checkpoints.weights_sha256(folder),
+                             "served_sha256": sha256,
                              **{k: scores[k] for k in KEYS}})  # fmt: skip
                 bar.update(1)
     return rows

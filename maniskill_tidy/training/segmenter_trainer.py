@@ -27,7 +27,14 @@ from maniskill_tidy.common.files import write_atomic
 from maniskill_tidy.envs.actions import MIN_PIXELS
 from maniskill_tidy.eval.mask_ap import mask_ap, score_threshold
 from maniskill_tidy.models import checkpoints
-from maniskill_tidy.models.segmenter import Segmenter, predict, upsample
+from maniskill_tidy.models.segmenter import (
+    INT8_CALIBRATION,
+    Runtime,
+    Segmenter,
+    int8_graph,
+    predict,
+    upsample,
+)
 from maniskill_tidy.perception.instances import (
     Mask2D,
     coarse,
@@ -120,7 +127,7 @@ def truth_masks(cls: np.ndarray, instance: np.ndarray, pickupable: list[int]) ->
 
 
 def instance_pairs(
-    model: Segmenter, frames: dict, relabel=None
+    model: Segmenter | Runtime, frames: dict, relabel=None
 ) -> tuple[list, list[int], np.ndarray]:
     """Per frame (truth, predicted instances) over the pickupable types, the instances made as
     agents make them (on the network's grid, masks of ``MIN_PIXELS`` or more at the frames'
@@ -130,7 +137,10 @@ def instance_pairs(
     classes = seg_classes()
     pickupable = [i for i in range(len(classes.names)) if classes.is_pickupable(i)]
     depth = frames["depth_mm"].astype(np.float32) / 1000.0
-    labels, probs = predict(model, frames["rgb"], depth)
+    if isinstance(model, Runtime):  # the served graph, as agents run it
+        labels, probs = model.predict(frames["rgb"], depth)
+    else:
+        labels, probs = predict(model, frames["rgb"], depth)
     step = depth.shape[1] // labels.shape[1]
     least = -(-MIN_PIXELS // step**2)
     pairs = []
@@ -144,14 +154,14 @@ def instance_pairs(
     return pairs, pickupable, upsample(labels, probs, depth.shape[1:3])[0]
 
 
-def agent_threshold(model: Segmenter, frames: dict) -> dict:
+def agent_threshold(model: Segmenter | Runtime, frames: dict) -> dict:
     """The confidence under which agents leave an object mask out: the best F1 on val frames
     (``mask_ap.score_threshold``), with its precision and recall."""
     pairs, pickupable, labels = instance_pairs(model, frames)
     return score_threshold(pairs, pickupable, labels.shape[1:3], ignore_below=MIN_PIXELS)
 
 
-def evaluate(model: Segmenter, frames: dict) -> dict:
+def evaluate(model: Segmenter | Runtime, frames: dict) -> dict:
     """Mask AP over the pickupable types (instances from the predicted labels and depth) of
     the objects an agent could act on (``MIN_PIXELS`` or more: the env's visibility; smaller
     ones ignored, also reported counted), and the share of pickupable pixels labelled with
@@ -324,38 +334,86 @@ def train_segmenter(cfg: SegTrainConfig, progress: bool = True) -> dict:
         "parameters": sum(p.numel() for p in model.parameters()),
         "frames": {"train": len(train["rgb"]), "val": len(val["rgb"]), "test": len(test["rgb"])},
         "best_epoch": state["best_epoch"],
-        "val": evaluate(model, val),  # the chosen epoch's, as it ships (the curve's: in fp32)
-        "test": evaluate(model, test),  # reported once, for the epoch val chose
-        "agent_threshold": agent_threshold(model, val),  # chosen on val
         "curve": state["curve"],
         "train_seconds": round(state["seconds"], 1),
         "weights_sha256": checkpoints.weights_sha256(out),
     }
-    write_atomic(out / "card.json", json.dumps(card, indent=1).encode())
+    # val and test (reported once, for the epoch val chose) and the agents' threshold (chosen
+    # on val) of the int8 graph agents run; the curve's are the fp32 weights'
+    card = quantize(out, data, val, test, card)
     plot_curve(card, out / "curve.png")
     ckpt.unlink(missing_ok=True)
     return card
 
 
-def rescore(folder: str | Path, data: str | Path) -> dict:
-    """A trained segmenter's card scored again with this code's instances (its weights, val
-    frames and test frames unchanged): ``val``, ``test`` and ``agent_threshold`` replaced, the
-    previous ones kept under ``scored_before``. For a card whose scoring changed after
-    training (how agents make instances); its learning curve stays as measured then."""
-    folder, data = Path(folder), Path(data)
-    card = json.loads((folder / "card.json").read_text())
+def _frames(card: dict, data: Path) -> tuple[dict, dict]:
+    """The val and test frames a card was scored on (refused if the data hashes differ)."""
     hashes = {s: json.loads((data / s / "manifest.json").read_text())["data_hash"]
               for s in ("val", "test")}  # fmt: skip
     if any(hashes[s] != card["config"]["data"][s] for s in hashes):
-        raise ValueError(f"{data}: not the frames {folder / 'card.json'} was trained and scored "
-                         "on (data hashes differ)")  # fmt: skip
+        raise ValueError(f"{data}: not the frames the card was trained and scored on (data "
+                         "hashes differ)")  # fmt: skip
+    cfg = card["config"]
+    val = load_split(data / "val", cfg["limit"].get("val", cfg["eval_frames"]))
+    return val, load_split(data / "test", cfg["limit"].get("test"))
+
+
+def _score(folder: Path, card: dict, val: dict, test: dict) -> None:
+    """The card's ``val``, ``test`` and ``agent_threshold`` of what agents run: the int8 graph
+    when the card names one (the fp16 weights' own under ``int8.fp16_torch``), else the fp16
+    weights."""
     model = checkpoints.load_segmenter(folder)[0]
-    val = load_split(data / "val", card["config"]["eval_frames"])
-    test = load_split(data / "test", card["config"]["limit"].get("test"))
-    before = {k: card[k] for k in ("val", "test", "agent_threshold")}
+    if card.get("int8"):
+        card["int8"]["fp16_torch"] = {"val": evaluate(model, val), "test": evaluate(model, test)}
+        model = Runtime((folder / checkpoints.INT8).read_bytes(), torch.get_num_threads())
     card["val"], card["test"] = evaluate(model, val), evaluate(model, test)
     card["agent_threshold"] = agent_threshold(model, val)
-    card["scored_before"] = [*card.get("scored_before", []), before]
+
+
+def quantize(folder: str | Path, data: str | Path, val: dict | None = None,
+             test: dict | None = None, card: dict | None = None) -> dict:  # fmt: skip
+    """Write the int8 graph agents run (``model.int8.onnx``, calibrated on
+    ``INT8_CALIBRATION`` evenly spaced val frames) beside a trained segmenter, and score its
+    card through it (``card``: a new one, else the folder's, whose scores stay under
+    ``scored_before``)."""
+    import onnxruntime
+
+    folder, data = Path(folder), Path(data)
+    if card is None:
+        if not (folder / "card.json").is_file():
+            raise FileNotFoundError(f"{folder / 'card.json'} not found: expected a segmenter "
+                                    "trained by `maniskill-tidy train-segmenter`")  # fmt: skip
+        card = json.loads((folder / "card.json").read_text())
+        scores = {k: card[k] for k in ("val", "test", "agent_threshold")}
+        card["scored_before"] = [*card.get("scored_before", []), scores]
+    if val is None or test is None:
+        val, test = _frames(card, data)
+    model = checkpoints.load_segmenter(folder)[0]
+    calibration = load_split(data / "val", INT8_CALIBRATION)
+    graph = int8_graph(model, calibration["rgb"], calibration["depth_mm"] / np.float32(1000.0))
+    card["int8"] = {
+        "file": checkpoints.INT8,
+        "sha256": checkpoints.save_segmenter_int8(folder, graph),
+        "calibration": f"{len(calibration['rgb'])} evenly spaced val frames; ONNX Runtime "
+        f"{onnxruntime.__version__} static QDQ, per-channel int8 weights, uint8 activations, "
+        "MinMax",
+    }
+    _score(folder, card, val, test)
+    write_atomic(folder / "card.json", json.dumps(card, indent=1).encode())
+    return card
+
+
+def rescore(folder: str | Path, data: str | Path) -> dict:
+    """A trained segmenter's card scored again with this code's instances (its weights, int8
+    graph, val frames and test frames unchanged): ``val``, ``test`` and ``agent_threshold``
+    replaced, the previous ones kept under ``scored_before``. For a card whose scoring changed
+    after training (how agents make instances); its learning curve stays as measured then."""
+    folder, data = Path(folder), Path(data)
+    card = json.loads((folder / "card.json").read_text())
+    val, test = _frames(card, data)
+    card["scored_before"] = [*card.get("scored_before", []),
+                             {k: card[k] for k in ("val", "test", "agent_threshold")}]  # fmt: skip
+    _score(folder, card, val, test)
     write_atomic(folder / "card.json", json.dumps(card, indent=1).encode())
     return card
 
