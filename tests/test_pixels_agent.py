@@ -1,8 +1,10 @@
 """How a pixels agent turns a segmenter's object masks into what its team sees, on synthetic
 frames: an object is shown once seen twice with confidence, kept by less confident sightings,
 a PickUp of one out of view aims at the same object seen as another track, and a PickUp whose
-pixel showed no object (or that failed twice), or a spot in clear view within reach where it
-was missed more often than seen, hides that track from then on."""
+pixel showed no object (or that failed twice at a pixel of the frame, not for the distance), or
+a spot in clear view within reach where it was missed more often than seen, hides that track
+from then on; targets are pixels the labels were made at, and furniture of one type side by
+side keeps its own pixels."""
 
 from __future__ import annotations
 
@@ -122,6 +124,9 @@ def test_a_pickup_aims_at_the_object_its_team_named_and_a_refuted_one_is_hidden(
     action = agent.act([])
     x, y = action.target
     assert action.action == Action.PickUp and 16 <= x < 24 and 16 <= y < 24
+    # a pixel the labels were made at (a cell's first), off the mask's rim: a rim cell's other
+    # pixels may show what lies beside the object
+    assert x % 2 == y % 2 == 0 and 18 <= x <= 20 and 18 <= y <= 20
     # the env found no object at that pixel: a false detection, hidden from now on
     agent.observe(view(agent, 2, f"PickUp at pixel {(x, y)}: no object {NOTHING_DRAWN}"))
     assert slot not in shown(agent)
@@ -140,14 +145,25 @@ def test_a_pickup_out_of_view_takes_the_same_object_seen_as_another_track(agent)
     agent.inner.action = Targeted(Action.PickUp, agent.table.instances[slot].id)
     action = agent.act([])
     assert action.target != (-1, -1) and agent.aimed == other
-    # failing twice refutes the track it aimed at
-    agent.segmenter.clear()
-    out_of_view = "PickUp at pixel (-1, -1): outside the 40 x 40 frame"
-    agent.observe(view(agent, 4, out_of_view))
+    # failing at a pixel of the frame twice refutes the track it aimed at; failing for the
+    # distance, or with no pixel to aim at (the object out of view), says nothing of it
+    agent.segmenter.clear()  # from here the segmenter misses it (too far to verify)
+    agent.observe(view(agent, 4, f"PickUp at pixel {action.target}: an object is out of reach "
+                                 "(2.10 m > 1.50 m)"))  # fmt: skip
     assert agent.refuted == set()
     agent.inner.action = Targeted(Action.PickUp, agent.table.instances[other].id)
-    assert agent.act([]).target == (-1, -1) and agent.aimed == other
-    agent.observe(view(agent, 5, out_of_view))
+    out_of_view = "PickUp at pixel (-1, -1): outside the 40 x 40 frame"
+    for step in (5, 6):
+        assert agent.act([]).target == (-1, -1) and agent.aimed == other
+        agent.observe(view(agent, step, out_of_view))
+    assert agent.refuted == set()
+    agent.segmenter.show(seg_classes().index["Mug"], slice(8, 12), slice(8, 12), 0.9)
+    agent.observe(view(agent, 7))
+    assert shown(agent) == {other}
+    for step in (8, 9):
+        pixel = agent.act([]).target
+        assert pixel != (-1, -1)
+        agent.observe(view(agent, step, f"PickUp at pixel {pixel}: an object is not visible"))
     assert agent.refuted == {2}
 
 
@@ -187,3 +203,25 @@ def test_a_pickup_of_an_object_missed_this_frame_aims_where_its_track_lies_withi
     agent.observe(view(agent, 3, f"PickUp at pixel {(x, y)}: no object {NOTHING_DRAWN}"))
     assert agent.refuted == {1}
     assert agent.act([]).target == (-1, -1)  # refuted: no longer recalled
+
+
+def test_two_pieces_of_one_type_side_by_side_keep_their_own_pixels():
+    """One furniture mask over two counters: each cell is named by the piece under its point,
+    so that a PutDown on either finds it in view."""
+
+    class Piece(NS):
+        def footprint(self):
+            return self.box
+
+    left = Piece(id="CounterTop_0", type="CounterTop", box=(-3.0, -3.0, 0.0, 3.0))
+    right = Piece(id="CounterTop_1", type="CounterTop", box=(0.0, -3.0, 3.0, 3.0))
+    house = NS(furniture=[left, right], furniture_by_id=lambda: {})
+    agent = PixelsAgent(Inner, "agent_0", PublicInfo(house, ["agent_0"], [], "episode", 0),
+                        None, FakeSegmenter())  # fmt: skip
+    counter = seg_classes().index["furniture:CounterTop"]
+    agent.segmenter.show(counter, slice(4, 16), slice(2, 18), 0.9, depth=2.0)
+    agent.observe(view(agent, 0))
+    seen = agent.inner.seen  # camera at the origin: world x is the image's columns' way
+    ids = {p.id: agent.table.furniture[p.id] for p in (left, right)}
+    assert set(np.unique(seen[8:32, 4:18])) == {ids["CounterTop_0"]}
+    assert set(np.unique(seen[8:32, 22:36])) == {ids["CounterTop_1"]}

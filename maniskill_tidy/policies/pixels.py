@@ -16,12 +16,14 @@ what it would read in the ground-truth track, made from the agent's own frame al
 
 Its PickUp and PutDown targets become a pixel of the current frame (the env resolves it,
 ``targets="pixels"``): the pixel of the named object's mask nearest the mask's middle, or for a
-surface, the pixel of that furniture's mask whose point lies nearest the surface. An object
+surface, the pixel of that furniture's mask whose point lies nearest the surface (of the pixels
+the labels were made at, off the mask's rim where it can). An object
 the segmenter missed this frame is aimed at where its track lies, if the frame shows that spot
 in clear view within reach; a target not in view is aimed at no pixel (the env names the
 failure, as for an id not in view). A PickUp
 whose pixel showed no object at all (the env's failure says so, as a gripper closing on nothing
-would) refutes the track it aimed at: that track's masks are no longer shown to the team. So
+would), or that failed twice at a pixel of the frame for another reason than the distance,
+refutes the track it aimed at: that track's masks are no longer shown to the team. So
 does looking: a track whose spot the frame showed in clear view within the arm's reach, and
 whose object the segmenter did not find there more often than it did (``MISSES``), is taken
 for a false detection made from afar (a multi-object tracker's deletion after missed
@@ -36,6 +38,7 @@ from collections import Counter
 from typing import ClassVar
 
 import numpy as np
+from scipy import ndimage
 
 from maniskill_tidy.envs.actions import MIN_PIXELS, NOTHING_DRAWN, Action, Targeted
 from maniskill_tidy.perception.instances import coarse, scored_by_contrast, split_instances
@@ -62,7 +65,7 @@ OWN_BODY = 0.45  # metres (horizontal) from the camera: a robot this close is th
 KEEP_THRESHOLD = 0.6
 REAIM = 0.6  # metres: a PickUp of an object out of view takes one of its type this close
 CONFIRM = 2  # frames an object must be seen in before the team is shown it
-FAILS = 2  # failed PickUps aimed at a track that refute it
+FAILS = 2  # PickUps failed at a pixel of the frame (not for the distance) that refute its track
 # a track whose spot was in clear view this close (metres: the arm's reach) and yet unseen
 # this many times, more often than seen there, is refuted: a false detection seen from afar
 VERIFY_RANGE = 1.5
@@ -200,8 +203,12 @@ class PixelsAgent(Agent):
                 self.structure_ids[cls] = sid
         self.held = 0  # seg id of what this agent believes it holds
         self.seg = None  # this frame's predicted ids
+        self.grid = 2  # frame pixels per cell of the segmenter's labels, each way
         self.points = None  # this frame's back-projection inputs
         self.aimed: int | None = None  # the seg id of the last PickUp's target
+        # whether that PickUp named a pixel of the frame: one aimed at no pixel (its target out
+        # of view) failed for want of a view, which says nothing of the track
+        self.aimed_in_frame = False
         self.refuted: set[int] = set()  # tracks a PickUp found nothing at: no object there
         self.fails: Counter = Counter()  # track -> PickUps aimed at it that failed
         self.in_frame: dict[int, tuple] = {}  # this frame's object slots: (class, position)
@@ -214,7 +221,7 @@ class PixelsAgent(Agent):
         c, table = self.table.classes, self.table
         rgb, depth = frame_arrays(obs)
         labels, probs = self.segmenter(self.name, rgb, depth)
-        grid = depth.shape[0] // labels.shape[0]
+        self.grid = grid = depth.shape[0] // labels.shape[0]
         depth_g = coarse(depth, grid)
         seg = self.structure_ids[labels]
         robot = c.index["robot"]
@@ -236,8 +243,8 @@ class PixelsAgent(Agent):
             elif m.cls == robot:
                 if np.hypot(*(p - camera)[:2]) > OWN_BODY:  # not its own base
                     m.paint(seg, table.structure[robot])
-            elif (fid := self._furniture_at(c.names[m.cls].split(":", 1)[1], p)) is not None:
-                m.paint(seg, table.furniture[fid])
+            else:
+                self._paint_furniture(m, c.names[m.cls].split(":", 1)[1], p, seg, depth_g, K, E)
         starts = [m.score >= self.segmenter.threshold for m, _ in objects]
         self.in_frame = {}
         located = self.tracker.update(objects, step, starts)
@@ -260,6 +267,35 @@ class PixelsAgent(Agent):
         self.segmenter.seconds["labels"] += time.perf_counter() - named
         return np.repeat(np.repeat(seg, grid, axis=0), grid, axis=1)
 
+    def _paint_furniture(self, m, type_name: str, p, seg, depth, K, E) -> None:
+        """Name a furniture mask by the floor plan: the piece of its type nearest it, or where
+        the house has several of that type, each cell by the piece nearest its own point (two
+        counters side by side make one mask of one class: each must keep its own pixels, or
+        PutDown finds only one of them in view)."""
+        pieces = self.footprints.get(type_name, ())
+        if len(pieces) < 2:
+            if (fid := self._furniture_at(type_name, p)) is not None:
+                m.paint(seg, self.table.furniture[fid])
+            return
+        from maniskill_tidy.perception.semantic_map import open3d_intrinsics, open3d_pose
+
+        w = m.window
+        rows, cols = np.nonzero(m.mask[w])
+        rows, cols = rows + (w[0].start or 0), cols + (w[1].start or 0)
+        fx, fy, cx, cy = open3d_intrinsics(K).astype(np.float64)
+        z = depth[rows, cols].astype(np.float64)
+        pose = open3d_pose(E).astype(np.float64)
+        xy = (pose[:2, :3] @ np.stack([(cols - cx) * z / fx, (rows - cy) * z / fy, z])).T
+        xy = xy + pose[:2, 3]
+        box = np.array([fp for _, fp in pieces], dtype=np.float64)  # (pieces, x0 y0 x1 y1)
+        dx = np.maximum(np.maximum(box[None, :, 0] - xy[:, :1], 0), xy[:, :1] - box[None, :, 2])
+        dy = np.maximum(np.maximum(box[None, :, 1] - xy[:, 1:], 0), xy[:, 1:] - box[None, :, 3])
+        dist = np.hypot(dx, dy)
+        near = dist.argmin(axis=1)
+        ok = dist[np.arange(len(near)), near] <= FURNITURE_MATCH
+        sids = np.array([self.table.furniture[fid] for fid, _ in pieces])
+        seg[rows[ok], cols[ok]] = sids[near[ok]]
+
     def _furniture_at(self, type_name: str, p: np.ndarray) -> str | None:
         """The piece of the floor plan of this type whose footprint lies nearest ``p``."""
         best, dist = None, FURNITURE_MATCH
@@ -279,7 +315,8 @@ class PixelsAgent(Agent):
     def observe(self, view: AgentView) -> None:
         if self.aimed is not None and not view.failed:  # the last PickUp took what it aimed at
             self.held = self.aimed
-        elif self.aimed is not None:  # the PickUp failed
+        elif self.aimed is not None and self.aimed_in_frame and "out of reach" not in view.failed:
+            # failed at a pixel of the frame, and not for the distance: the track is in doubt
             for t in self.table.tracks_of(self.aimed):
                 self.fails[t] += 1
                 # its pixel showed no object, or it failed again: a false detection
@@ -303,12 +340,15 @@ class PixelsAgent(Agent):
         if not isinstance(action, Targeted):
             if action == Action.PickUp:  # plain: the env takes the object covering most pixels
                 self.aimed = self._largest_object()
+                self.aimed_in_frame = self.aimed is not None
             return action
         if action.action == Action.PickUp:
             sid = self._in_view(self.table.by_id.get(action.target))
             self.aimed = sid
             pixel = self._pixel(sid)
-            return Targeted(action.action, pixel if pixel != (-1, -1) else self._recalled(sid))
+            pixel = pixel if pixel != (-1, -1) else self._recalled(sid)
+            self.aimed_in_frame = pixel != (-1, -1)
+            return Targeted(action.action, pixel)
         fid, _, surface = str(action.target).partition("/")
         return Targeted(action.action, self._pixel(self.table.furniture.get(fid), surface, fid))
 
@@ -349,12 +389,19 @@ class PixelsAgent(Agent):
 
     def _pixel(self, sid: int | None, surface: str = "", fid: str = "") -> tuple[int, int]:
         """A pixel of ``sid``'s mask in this frame: nearest its middle, or for a surface, the
-        one whose point lies nearest the surface's centre; (-1, -1) if it is not in view."""
+        one whose point lies nearest the surface's centre; (-1, -1) if it is not in view. Only
+        the pixels the labels were made at (a cell's first), and of those the mask's inner ones
+        where it has any: a cell's other pixels, and a mask's rim, may show what lies beside it
+        (an object on the table, the floor behind), where the env would find no target."""
         if sid is None or self.seg is None:
             return (-1, -1)
-        rows, cols = np.nonzero(self.seg == sid)
+        g = self.grid
+        cells = self.seg[::g, ::g] == sid
+        inner = ndimage.binary_erosion(cells)
+        rows, cols = np.nonzero(inner if inner.any() else cells)
         if not len(rows):
             return (-1, -1)
+        rows, cols = rows * g, cols * g
         if surface:
             s = self.furniture_by_id[fid].surface(surface)
             depth, K, E = self.points

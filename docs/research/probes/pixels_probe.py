@@ -1,14 +1,20 @@
 """What the pixels-team probes share: their command line (a camera-only team, the dataset, the
-segmenter, how many Setting I test episodes in v2) and the loop that plays each episode with a
-fresh observer."""
+segmenter, how many Setting I test episodes in v2, whose labels agents get) and the loop that
+plays each episode with a fresh observer.
+
+``--labels renderer`` feeds every agent the renderer's classes in place of the segmenter's
+(:class:`TruthLabels`): a perfect segmenter, with the rest of the pixels pipeline unchanged."""
 
 from __future__ import annotations
 
 import argparse
 from collections.abc import Callable, Iterator
 
+import numpy as np
+
 from maniskill_tidy.eval.episode import play_episode
 from maniskill_tidy.eval.runner import RunConfig, make_env, make_run_team, select
+from maniskill_tidy.perception.seg_classes import seg_classes
 
 
 def arguments(doc: str, policy: str, episodes: int) -> argparse.Namespace:
@@ -17,7 +23,34 @@ def arguments(doc: str, policy: str, episodes: int) -> argparse.Namespace:
     ap.add_argument("--dataset", default="data/tidy120")
     ap.add_argument("--segmentation", default="learned")
     ap.add_argument("--episodes", type=int, default=episodes)
+    ap.add_argument(
+        "--labels",
+        choices=("segmenter", "renderer"),
+        default="segmenter",
+        help="what agents label their frames with (renderer: a perfect segmenter)",
+    )
     return ap.parse_args()
+
+
+class TruthLabels:
+    """An observer that puts each agent's frame's classes (on the segmenter's half-resolution
+    grid, as its training targets, every pixel fully confident) where the team's segmenter
+    leaves its labels for the agent (``Segmenter.pending``), and stops the segmenter's batch.
+    Still no instance id: agents make objects from classes and depth as from the segmenter's."""
+
+    def start(self, env, team, channel) -> None:
+        self.classes = seg_classes()
+        self.table = self.classes.lookup(env.instances)
+        self.segmenter = team.segmenter
+        team.prepare = lambda observations: None
+
+    def observed(self, t, obs, info) -> None:
+        pending = {}
+        for name, o in obs.items():
+            seg = np.asarray(o["segmentation"]).reshape(o["rgb"].shape[:2])
+            labels = self.classes.labels(seg, self.table)[::2, ::2]
+            pending[name] = (np.ascontiguousarray(labels), np.ones(labels.shape, np.float32))
+        self.segmenter.pending = pending
 
 
 def played(args: argparse.Namespace, observer: Callable[[], object]) -> Iterator[tuple]:
@@ -28,6 +61,7 @@ def played(args: argparse.Namespace, observer: Callable[[], object]) -> Iterator
     try:
         for i in select([e.start for e in env.unwrapped.episodes.episodes], args.episodes):
             log = observer()
-            yield play_episode(env, team, i, i, [log]), log
+            extra = [TruthLabels()] if args.labels == "renderer" else []
+            yield play_episode(env, team, i, i, [*extra, log]), log
     finally:
         env.close()
