@@ -121,10 +121,11 @@ segmenter-data: setup
 	for e in HeteroTidy-v2 HeteroTidy-v1; do $(PY) -m maniskill_tidy.cli segmenter-data --env $$e \
 	  --dataset $(DATA120) --out $(SEGMENTER_DATA)/$$e --workers 2 || exit 1; done
 
-# The segmenter per look on those frames (resumable per epoch): agents/segmenter-v2, -v1.
+# The segmenter per look on those frames (resumable per epoch) and the int8 graph agents run:
+# agents/segmenter-v2 (24, 32 channels first, about 55 min alone), -v1 (the former 16, 24).
 train-segmenter: segmenter-data
 	$(PY) -m maniskill_tidy.cli train-segmenter --data $(SEGMENTER_DATA)/HeteroTidy-v2 --out agents/segmenter-v2
-	$(PY) -m maniskill_tidy.cli train-segmenter --data $(SEGMENTER_DATA)/HeteroTidy-v1 --out agents/segmenter-v1
+	$(PY) -m maniskill_tidy.cli train-segmenter --data $(SEGMENTER_DATA)/HeteroTidy-v1 --out agents/segmenter-v1 --widths 16,24,32,48,64
 
 # Each look's segmenter on each look's test frames: eval/segmenter_cross_look.{json,md}.
 segmenter-cross-look: setup

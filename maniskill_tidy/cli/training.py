@@ -274,7 +274,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     ts.add_argument("--epochs", type=int, default=16)
     ts.add_argument("--batch", type=int, default=16)
     ts.add_argument("--crop", type=int, default=128, help="training crops, px (frames are 224)")
-    ts.add_argument("--widths", help="channels of the five levels (16,24,32,48,64)")
+    ts.add_argument("--widths", help="channels of the five levels (24,32,32,48,64)")
     ts.add_argument("--seed", type=int, default=0)
     ts.add_argument("--stem", type=int, default=0,
                     help="channels of a full-resolution convolution before the first stride "
