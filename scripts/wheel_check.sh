@@ -28,7 +28,8 @@ assert b"License-Expression: Apache-2.0 AND CC-BY-3.0" in meta, "no licence expr
 print("[wheel-check] LICENSE and ATTRIBUTION.md are in the wheel's .dist-info/licenses/")
 # the shipped learned teams travel as package data; experiments and training state stay out
 for want in ("memory.yaml", "memory/setting_I/model.pt", "hangrcom/setting_II/model.pt",
-             "perception/knowledge/model.pt", "segmenter-v2/model.pt"):
+             "perception/knowledge/model.pt", "segmenter-v2/model.pt",
+             "segmenter-v2/model.int8.onnx"):
     assert f"maniskill_tidy/agents/{want}" in names, f"the wheel has no agents/{want}"
 stray = [n for n in names if "/agents/experiments/" in n or n.endswith("checkpoint.pt")]
 assert not stray, f"the wheel carries {stray[:3]}"
