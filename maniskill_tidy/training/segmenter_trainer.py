@@ -6,7 +6,8 @@ report once), fits ``models/segmenter.py`` with class-weighted cross-entropy on 
 full resolution, keeps the epoch of best val mask AP50 over the pickupable types (then pixel
 accuracy), and writes
 ``model.pt`` (fp16), ``card.json`` (val curve, test mask AP by size, training time, data hashes,
-weights sha256) and ``curve.png`` beside it. Resumes from its last epoch (an atomic checkpoint).
+weights sha256) and ``curve.png`` beside it, then the int8 graph agents run (``quantize``), through
+which the card's val and test are scored. Resumes from its last epoch (an atomic checkpoint).
 """
 
 from __future__ import annotations
