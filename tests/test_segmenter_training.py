@@ -175,6 +175,25 @@ def test_relief_reads_zero_on_a_slanted_plane_and_negative_on_a_box_standing_on_
     assert (proud[0, :, 32, 32] < -0.2).all() and proud[0, -1, 32, 32] < -0.5  # widest window
 
 
+def test_crops_without_zoom_are_drawn_as_the_shipped_segmenters_were_trained():
+    """``zoom`` 1 keeps the shipped runs' random draws: rows, then columns, each one integer
+    per crop, made even; a checkpoint resumed under this code crops as it did."""
+    from maniskill_tidy.training.segmenter_trainer import _crops
+
+    n, crop = 5, 64
+    rgb = np.zeros((n, 224, 224, 3), np.uint8)
+    rgb[..., 0] = np.arange(224)[None, :, None]  # each pixel says its row ...
+    rgb[..., 1] = np.arange(224)[None, None, :]  # ... and its column
+    frames = {"rgb": rgb, "depth_mm": np.full((n, 224, 224), 2000, np.uint16),
+              "cls": np.zeros((n, 224, 224), np.uint8)}  # fmt: skip
+    out, _, labels = _crops(frames, np.arange(n), crop, np.random.default_rng(7), zoom=1.0)
+    draws = np.random.default_rng(7)
+    ys, xs = draws.integers(0, 224 - crop + 1, n), draws.integers(0, 224 - crop + 1, n)
+    assert out.shape == (n, 3, crop, crop) and labels.shape == (n, crop // 2, crop // 2)
+    for k in range(n):  # a flip reverses the columns, not which ones
+        assert int(out[k, 0].min()) == ys[k] // 2 * 2 and int(out[k, 1].min()) == xs[k] // 2 * 2
+
+
 def test_zoomed_crops_show_objects_larger_and_nearer():
     """Crops blown up by up to ``zoom`` show an object over more label cells, its depth
     smaller by the same factor; without zoom, every crop shows it at its size."""
