@@ -102,6 +102,20 @@ def test_a_tiny_segmenter_trains_resumes_and_loads(tiny_data, tmp_path, monkeypa
     assert (int8_labels == labels).mean() > 0.9  # int8 rounding moves a few labels, not most
     assert (int8_labels != labels).any() or (int8_probs != probs).any()  # not the fp32 graph
     blob = graph.read_bytes()
+    # which convolutions stay fp32 is a choice (the int8 probe compares them): every one in
+    # int8 dequantizes more than the label head alone in fp32, which dequantizes more than the
+    # shipped graph (the first convolution fp32 too); a name it does not know is refused
+    import onnx
+
+    from maniskill_tidy.models.segmenter import int8_graph
+
+    def dequantized(graph: bytes) -> int:
+        return sum(n.op_type == "DequantizeLinear" for n in onnx.load_from_string(graph).graph.node)
+
+    every, head = (int8_graph(model, z_rgb, z_depth, fp32) for fp32 in ((), ("head",)))
+    assert dequantized(every) > dequantized(head) > dequantized(blob)
+    with pytest.raises(ValueError, match="'stem'.*expected 'first' and/or 'head'"):
+        int8_graph(model, z_rgb, z_depth, ("stem",))
     graph.write_bytes(blob[:-1] + bytes([blob[-1] ^ 1]))  # a damaged or substituted graph
     with pytest.raises(CheckpointError, match="int8.sha256"):
         served_sha256(tmp_path / "a")

@@ -198,14 +198,18 @@ def onnx_graph(model: Segmenter) -> bytes:
     return buf.getvalue()
 
 
-def int8_graph(model: Segmenter, rgb: np.ndarray, depth_m: np.ndarray) -> bytes:
+def int8_graph(model: Segmenter, rgb: np.ndarray, depth_m: np.ndarray,
+               fp32: tuple[str, ...] = ("first", "head")) -> bytes:  # fmt: skip
     """The served graph with int8 convolutions (ONNX Runtime's static QDQ quantization:
     per-channel int8 weights, uint8 activations whose ranges are the min and max seen on
-    ``rgb``/``depth_m``, val frames); the same frames give the same graph. The first
-    convolution (RGB-D in: 8 bits of depth are 2 cm steps over 5 m, coarser than the relief
-    that tells an object from the table it lies on) and the label head (the margin between
-    two logits is the masks' confidence) stay fp32: with them in int8 the shipped v2
-    segmenter lost 0.016 of val mask AP50, without them 0.001 (research log)."""
+    ``rgb``/``depth_m``, val frames); the same frames give the same graph. The convolutions
+    in ``fp32`` stay so: by default the first (RGB-D in: 8 bits of depth are 2 cm steps over
+    5 m, coarser than the relief that tells an object from the table it lies on) and the label
+    head (the margin between two logits is the masks' confidence): with them in int8 the
+    shipped v2 segmenter lost 0.016 of val mask AP50, without them 0.001
+    (``docs/research/probes/int8_segmenter.py``)."""
+    if unknown := set(fp32) - {"first", "head"}:
+        raise ValueError(f"fp32 {sorted(unknown)}: expected 'first' and/or 'head'")
     import tempfile
 
     import onnx
@@ -225,15 +229,17 @@ def int8_graph(model: Segmenter, rgb: np.ndarray, depth_m: np.ndarray) -> bytes:
             }
 
     with tempfile.TemporaryDirectory() as tmp:
-        fp32, pre, out = (Path(tmp) / n for n in ("fp32.onnx", "pre.onnx", "int8.onnx"))
-        fp32.write_bytes(onnx_graph(model))
-        q.quant_pre_process(str(fp32), str(pre), skip_symbolic_shape=True)
+        full, pre, out = (Path(tmp) / n for n in ("fp32.onnx", "pre.onnx", "int8.onnx"))
+        full.write_bytes(onnx_graph(model))
+        q.quant_pre_process(str(full), str(pre), skip_symbolic_shape=True)
         convs = [n.name for n in onnx.load(str(pre)).graph.node if n.op_type == "Conv"]
         q.quantize_static(
             str(pre), str(out), Frames(), quant_format=q.QuantFormat.QDQ, per_channel=True,
             activation_type=q.QuantType.QUInt8, weight_type=q.QuantType.QInt8,
             calibrate_method=q.CalibrationMethod.MinMax, op_types_to_quantize=["Conv"],
-            nodes_to_exclude=[convs[0], convs[-1]],  # in graph order: RGB-D in, labels out
+            # in graph order: RGB-D in, labels out
+            nodes_to_exclude=[n for n, k in ((convs[0], "first"), (convs[-1], "head"))
+                              if k in fp32],
         )  # fmt: skip
         return out.read_bytes()
 

@@ -72,12 +72,19 @@ def mask_position(
         return None
     rows = rows + (window[0].start or 0)
     cols = cols + (window[1].start or 0)
+    return np.median(back_project(rows, cols, d, intrinsics, extrinsics), axis=0)
+
+
+def back_project(rows: np.ndarray, cols: np.ndarray, depth: np.ndarray, intrinsics,
+                 extrinsics) -> np.ndarray:  # fmt: skip
+    """The world points (N, 3) of pixels (``rows``, ``cols``) at their depth, as open3d
+    unprojects them (pixel u at u: the maps, the tracks and :func:`project` agree)."""
+    d = depth.reshape(depth.shape[:2])
     fx, fy, cx, cy = open3d_intrinsics(intrinsics).astype(np.float64)
     z = d[rows, cols].astype(np.float64)
     camera = np.stack([(cols - cx) * z / fx, (rows - cy) * z / fy, z])
     pose = open3d_pose(extrinsics).astype(np.float64)
-    world = pose[:, :3] @ camera + pose[:, 3:]
-    return np.median(world, axis=1)
+    return (pose[:, :3] @ camera + pose[:, 3:]).T
 
 
 @njit(cache=True, nogil=True)

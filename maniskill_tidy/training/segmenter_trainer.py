@@ -361,6 +361,13 @@ def _frames(card: dict, data: Path) -> tuple[dict, dict]:
     return val, load_split(data / "test", cfg["limit"].get("test"))
 
 
+def _keep_scores(card: dict) -> dict:
+    """``card`` with its current scores appended to ``scored_before``, before a rescoring."""
+    scores = {k: card[k] for k in ("val", "test", "agent_threshold")}
+    card["scored_before"] = [*card.get("scored_before", []), scores]
+    return card
+
+
 def _score(folder: Path, card: dict, val: dict, test: dict) -> None:
     """The card's ``val``, ``test`` and ``agent_threshold`` of what agents run: the int8 graph
     when the card names one (the fp16 weights' own under ``int8.fp16_torch``), else the fp16
@@ -386,9 +393,7 @@ def quantize(folder: str | Path, data: str | Path, val: dict | None = None,
         if not (folder / "card.json").is_file():
             raise FileNotFoundError(f"{folder / 'card.json'} not found: expected a segmenter "
                                     "trained by `maniskill-tidy train-segmenter`")  # fmt: skip
-        card = json.loads((folder / "card.json").read_text())
-        scores = {k: card[k] for k in ("val", "test", "agent_threshold")}
-        card["scored_before"] = [*card.get("scored_before", []), scores]
+        card = _keep_scores(json.loads((folder / "card.json").read_text()))
     if val is None or test is None:
         val, test = _frames(card, data)
     model = checkpoints.load_segmenter(folder)[0]
@@ -412,10 +417,8 @@ def rescore(folder: str | Path, data: str | Path) -> dict:
     replaced, the previous ones kept under ``scored_before``. For a card whose scoring changed
     after training (how agents make instances); its learning curve stays as measured then."""
     folder, data = Path(folder), Path(data)
-    card = json.loads((folder / "card.json").read_text())
+    card = _keep_scores(json.loads((folder / "card.json").read_text()))
     val, test = _frames(card, data)
-    card["scored_before"] = [*card.get("scored_before", []),
-                             {k: card[k] for k in ("val", "test", "agent_threshold")}]  # fmt: skip
     _score(folder, card, val, test)
     write_atomic(folder / "card.json", json.dumps(card, indent=1).encode())
     return card
