@@ -3,8 +3,8 @@ frames: an object is shown once seen twice with confidence, kept by less confide
 a PickUp of one out of view aims at the same object seen as another track, and a PickUp whose
 pixel showed no object (or that failed twice at a pixel of the frame, not for the distance), or
 a spot in clear view within reach where it was missed more often than seen, hides that track
-from then on; targets are pixels the labels were made at, and furniture of one type side by
-side keeps its own pixels."""
+from then on; targets are pixels the labels were made at (a PutDown's, where its surface
+projects), and furniture of one type side by side keeps its own pixels."""
 
 from __future__ import annotations
 
@@ -63,6 +63,9 @@ class Inner:
 
     def act(self, inbox):
         return self.action
+
+    def forget(self, object_id: str) -> None:  # as HeuristicAgent.forget
+        self.forgotten = [*getattr(self, "forgotten", []), object_id]
 
 
 @pytest.fixture
@@ -130,8 +133,10 @@ def test_a_pickup_aims_at_the_object_its_team_named_and_a_refuted_one_is_hidden(
     # the env found no object at that pixel: a false detection, hidden from now on
     agent.observe(view(agent, 2, f"PickUp at pixel {(x, y)}: no object {NOTHING_DRAWN}"))
     assert slot not in shown(agent)
+    assert agent.inner.forgotten == [name]  # its team is told once: it stops fetching it
     agent.observe(view(agent, 3))
     assert shown(agent) == set() and agent.tracker.tracks  # still tracked, never shown
+    assert agent.inner.forgotten == [name]
 
 
 def test_a_pickup_out_of_view_takes_the_same_object_seen_as_another_track(agent):
@@ -225,3 +230,35 @@ def test_two_pieces_of_one_type_side_by_side_keep_their_own_pixels():
     ids = {p.id: agent.table.furniture[p.id] for p in (left, right)}
     assert set(np.unique(seen[8:32, 4:18])) == {ids["CounterTop_0"]}
     assert set(np.unique(seen[8:32, 22:36])) == {ids["CounterTop_1"]}
+
+
+def test_a_putdown_aims_where_the_named_surface_of_the_piece_projects():
+    """The env tries a piece's surfaces whose centre projects nearest the pixel first: a
+    PutDown on one surface aims at the piece's mask pixel nearest where that surface's world
+    centre (the floor plan's, not its piece-local one) projects."""
+
+    class Piece(NS):
+        def footprint(self):
+            return (-3.0, -3.0, 3.0, 3.0)
+
+        def surface(self, name):
+            return next(s for s in self.surfaces if s.name == name)
+
+        def surface_world(self, s):  # yaw 0: the piece's position plus the local centre
+            return [p + c for p, c in zip(self.position, s.center, strict=True)], None
+
+    shelves = Piece(id="Shelf_0", type="ShelvingUnit", position=(0.3, 0.3, 0.0),
+                    surfaces=[NS(name="top", center=(-0.8, -0.8, 2.0)),
+                              NS(name="shelf_0", center=(0.2, 0.2, 2.0))])  # fmt: skip
+    house = NS(furniture=[shelves], furniture_by_id=lambda: {"Shelf_0": shelves})
+    agent = PixelsAgent(Inner, "agent_0", PublicInfo(house, ["agent_0"], [], "episode", 0),
+                        None, FakeSegmenter())  # fmt: skip
+    unit = seg_classes().index["furniture:ShelvingUnit"]
+    agent.segmenter.show(unit, slice(2, 18), slice(2, 18), 0.9, depth=2.0)
+    agent.observe(view(agent, 0))
+    # camera at the origin looking along +z: world (-0.5, -0.5, 2) projects to about (10, 10),
+    # (0.5, 0.5, 2) to about (30, 30); the local centres would give the mask's corner
+    for surface, want in (("top", 10), ("shelf_0", 30)):
+        agent.inner.action = Targeted(Action.PutDown, f"Shelf_0/{surface}")
+        x, y = agent.act([]).target
+        assert abs(x - want) <= 2 and abs(y - want) <= 2, (surface, x, y)

@@ -195,6 +195,24 @@ def test_a_learned_agent_maps_the_wide_layout_only_when_its_model_reads_it(
         assert agent.reader.wide is expect, config
 
 
+def test_a_heuristic_agent_forgets_an_object_its_perception_takes_back(small_house_public):
+    """The pixels track refutes a false detection it had shown (``PixelsAgent._take_back``):
+    the object leaves the memory and a job to fetch it ends; another object's job goes on."""
+    from maniskill_tidy.policies.heuristic_jobs import Known
+    from maniskill_tidy.policies.walker import Job, Leg
+
+    public = small_house_public
+    agent = make_team("memory").make_agent("agent_2", public, Outbox(Channel(public.agents),
+                                                                      "agent_2"))  # fmt: skip
+    for oid in ("Mug#0", "Mug#1"):
+        agent.objects[oid] = Known(oid, 1, "Mug", np.zeros(3), True)
+    agent.job = Job("pick", "Mug#1", Leg([]), SubTask(PLACE, "Mug"))
+    agent.forget("Mug#0")
+    assert set(agent.objects) == {"Mug#1"} and agent.job.target == "Mug#1"
+    agent.forget("Mug#1")
+    assert agent.objects == {} and agent.job is None
+
+
 @pytest.fixture(scope="module")
 def small_house_public():
     from maniskill_tidy.envs.episodes import default_dataset

@@ -179,6 +179,15 @@ class HeuristicAgent(JobChoice, Agent):
             if oid not in seen and _in_clear_view(k.position, view):
                 del self.objects[oid]
 
+    def forget(self, object_id: str) -> None:
+        """Perception took back an object it had shown (the pixels track refutes a false
+        detection, ``policies/pixels.py``): it leaves the memory, and a job to fetch it ends
+        instead of trying every viewpoint of a spot where nothing lies. Never called on ground
+        truth, whose objects are never taken back."""
+        self.objects.pop(object_id, None)
+        if self.job is not None and self.job.kind == "pick" and self.job.target == object_id:
+            self.job = None
+
     def _looked_at(self, r: Report, view: tuple) -> bool:
         return any(_in_clear_view([*r.xy, z], view) for z in (0.05, 0.45, 0.85))
 

@@ -16,14 +16,16 @@ what it would read in the ground-truth track, made from the agent's own frame al
 
 Its PickUp and PutDown targets become a pixel of the current frame (the env resolves it,
 ``targets="pixels"``): the pixel of the named object's mask nearest the mask's middle, or for a
-surface, the pixel of that furniture's mask whose point lies nearest the surface (of the pixels
-the labels were made at, off the mask's rim where it can). An object
+surface, the pixel of that furniture's mask nearest where the surface's centre projects (the
+env tries the piece's surfaces in that order; of the pixels the labels were made at, off the
+mask's rim where it can). An object
 the segmenter missed this frame is aimed at where its track lies, if the frame shows that spot
 in clear view within reach; a target not in view is aimed at no pixel (the env names the
 failure, as for an id not in view). A PickUp
 whose pixel showed no object at all (the env's failure says so, as a gripper closing on nothing
 would), or that failed twice at a pixel of the frame for another reason than the distance,
-refutes the track it aimed at: that track's masks are no longer shown to the team. So
+refutes the track it aimed at: that track's masks are no longer shown to the team, and the
+team's agent forgets the object (``HeuristicAgent.forget``). So
 does looking: a track whose spot the frame showed in clear view within the arm's reach, and
 whose object the segmenter did not find there more often than it did (``MISSES``), is taken
 for a false detection made from afar (a multi-object tracker's deletion after missed
@@ -45,6 +47,7 @@ from maniskill_tidy.perception.instances import coarse, scored_by_contrast, spli
 from maniskill_tidy.perception.seg_classes import STRUCTURE, seg_classes
 from maniskill_tidy.perception.tracks import (
     Tracker,
+    back_project,
     camera_position,
     clear_view,
     coarse_intrinsics,
@@ -71,6 +74,17 @@ FAILS = 2  # PickUps failed at a pixel of the frame (not for the distance) that 
 VERIFY_RANGE = 1.5
 MISSES = 2
 PIXELS_OBSERVATION = "rgb+depth"
+# metres from a furniture mask's point: a second piece of its type this close, and the mask is
+# named cell by cell (one mask may cover both); else the whole mask is the nearest piece's
+SPLIT_RANGE = 2.0
+
+
+def footprint_distance(xy: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+    """Horizontal metres from each point (N, 2) to each footprint (P, 4: x0 y0 x1 y1), 0
+    inside: (N, P)."""
+    dx = np.maximum(np.maximum(boxes[None, :, 0] - xy[:, :1], 0), xy[:, :1] - boxes[None, :, 2])
+    dy = np.maximum(np.maximum(boxes[None, :, 1] - xy[:, 1:], 0), xy[:, 1:] - boxes[None, :, 3])
+    return np.hypot(dx, dy)
 
 
 class Segmenter:
@@ -194,9 +208,12 @@ class PixelsAgent(Agent):
                                  or c.is_pickupable(i)]  # fmt: skip
         self.furniture_by_id = public.house.furniture_by_id()
         self.object_classes = [i for i in range(len(c.names)) if c.is_pickupable(i) and i]
-        self.footprints: dict[str, list] = {}  # furniture type -> [(id, footprint)]
+        pieces: dict[str, list] = {}
         for f in public.house.furniture:
-            self.footprints.setdefault(f.type, []).append((f.id, f.footprint()))
+            pieces.setdefault(f.type, []).append((f.id, f.footprint()))
+        # furniture type -> (ids, footprints (n, 4): x0 y0 x1 y1)
+        self.footprints = {t: ([fid for fid, _ in ps], np.array([fp for _, fp in ps], float))
+                           for t, ps in pieces.items()}  # fmt: skip
         self.structure_ids = np.zeros(256, dtype=np.int32)  # class -> id (robots by mask)
         for cls, sid in self.table.structure.items():
             if c.names[cls] != "robot":
@@ -269,41 +286,25 @@ class PixelsAgent(Agent):
 
     def _paint_furniture(self, m, type_name: str, p, seg, depth, K, E) -> None:
         """Name a furniture mask by the floor plan: the piece of its type nearest it, or where
-        the house has several of that type, each cell by the piece nearest its own point (two
-        counters side by side make one mask of one class: each must keep its own pixels, or
-        PutDown finds only one of them in view)."""
-        pieces = self.footprints.get(type_name, ())
-        if len(pieces) < 2:
-            if (fid := self._furniture_at(type_name, p)) is not None:
-                m.paint(seg, self.table.furniture[fid])
+        another piece of that type lies near it too, each cell by the piece nearest its own
+        point (two counters side by side make one mask of one class: each must keep its own
+        pixels, or PutDown finds only one of them in view)."""
+        ids, boxes = self.footprints.get(type_name, ((), None))
+        if not ids:
             return
-        from maniskill_tidy.perception.semantic_map import open3d_intrinsics, open3d_pose
-
+        near = footprint_distance(p[None, :2], boxes)[0]
+        if (near <= SPLIT_RANGE).sum() < 2:
+            if near.min() <= FURNITURE_MATCH:
+                m.paint(seg, self.table.furniture[ids[int(near.argmin())]])
+            return
         w = m.window
         rows, cols = np.nonzero(m.mask[w])
         rows, cols = rows + (w[0].start or 0), cols + (w[1].start or 0)
-        fx, fy, cx, cy = open3d_intrinsics(K).astype(np.float64)
-        z = depth[rows, cols].astype(np.float64)
-        pose = open3d_pose(E).astype(np.float64)
-        xy = (pose[:2, :3] @ np.stack([(cols - cx) * z / fx, (rows - cy) * z / fy, z])).T
-        xy = xy + pose[:2, 3]
-        box = np.array([fp for _, fp in pieces], dtype=np.float64)  # (pieces, x0 y0 x1 y1)
-        dx = np.maximum(np.maximum(box[None, :, 0] - xy[:, :1], 0), xy[:, :1] - box[None, :, 2])
-        dy = np.maximum(np.maximum(box[None, :, 1] - xy[:, 1:], 0), xy[:, 1:] - box[None, :, 3])
-        dist = np.hypot(dx, dy)
-        near = dist.argmin(axis=1)
-        ok = dist[np.arange(len(near)), near] <= FURNITURE_MATCH
-        sids = np.array([self.table.furniture[fid] for fid, _ in pieces])
-        seg[rows[ok], cols[ok]] = sids[near[ok]]
-
-    def _furniture_at(self, type_name: str, p: np.ndarray) -> str | None:
-        """The piece of the floor plan of this type whose footprint lies nearest ``p``."""
-        best, dist = None, FURNITURE_MATCH
-        for fid, (x0, y0, x1, y1) in self.footprints.get(type_name, ()):
-            d = float(np.hypot(max(x0 - p[0], 0, p[0] - x1), max(y0 - p[1], 0, p[1] - y1)))
-            if d <= dist:
-                best, dist = fid, d
-        return best
+        dist = footprint_distance(back_project(rows, cols, depth, K, E)[:, :2], boxes)
+        nearest = dist.argmin(axis=1)
+        ok = dist[np.arange(len(nearest)), nearest] <= FURNITURE_MATCH
+        sids = np.array([self.table.furniture[fid] for fid in ids])
+        seg[rows[ok], cols[ok]] = sids[nearest[ok]]
 
     def _is_held(self, m, p: np.ndarray, camera: np.ndarray) -> bool:
         """A mask of the held type seen this close to the camera is the held object."""
@@ -313,6 +314,7 @@ class PixelsAgent(Agent):
         return float(np.linalg.norm(p - camera)) <= HOLD_RANGE
 
     def observe(self, view: AgentView) -> None:
+        before = set(self.refuted)
         if self.aimed is not None and not view.failed:  # the last PickUp took what it aimed at
             self.held = self.aimed
         elif self.aimed is not None and self.aimed_in_frame and "out of reach" not in view.failed:
@@ -326,8 +328,18 @@ class PixelsAgent(Agent):
             self.held = 0
         self.aimed = None
         self.seg = self._frame(view.obs, view.step)
+        self._take_back(self.refuted - before)
         obs = dict(view.obs, segmentation=self.seg, held=np.int32(self.held))
         self.inner.observe(dataclasses.replace(view, obs=obs))
+
+    def _take_back(self, tracks: set[int]) -> None:
+        """Tell the team's agent which objects it was shown are refuted (if it can forget one:
+        ``HeuristicAgent.forget``), so that it stops fetching what is not there."""
+        forget = getattr(self.inner, "forget", None)
+        for t in tracks if forget is not None else ():
+            sid = self.table.by_track.get(t)
+            if sid is not None:
+                forget(self.table.instances[sid].id)
 
     # ------------------------------------------------------------------ acting
     def send(self, round: int, inbox) -> None:
@@ -389,7 +401,7 @@ class PixelsAgent(Agent):
 
     def _pixel(self, sid: int | None, surface: str = "", fid: str = "") -> tuple[int, int]:
         """A pixel of ``sid``'s mask in this frame: nearest its middle, or for a surface, the
-        one whose point lies nearest the surface's centre; (-1, -1) if it is not in view. Only
+        one nearest where the surface's centre projects; (-1, -1) if it is not in view. Only
         the pixels the labels were made at (a cell's first), and of those the mask's inner ones
         where it has any: a cell's other pixels, and a mask's rim, may show what lies beside it
         (an object on the table, the floor behind), where the env would find no target."""
@@ -403,16 +415,17 @@ class PixelsAgent(Agent):
             return (-1, -1)
         rows, cols = rows * g, cols * g
         if surface:
-            s = self.furniture_by_id[fid].surface(surface)
+            # the env tries the piece's surfaces whose centre projects nearest the pixel
+            # first: aim where this one's centre projects (floor plan), else at its point
+            f = self.furniture_by_id[fid]
+            centre = np.asarray(f.surface_world(f.surface(surface))[0]) + [0.0, 0.0, 0.02]
             depth, K, E = self.points
-            from maniskill_tidy.perception.semantic_map import open3d_intrinsics, open3d_pose
-
-            fx, fy, cx, cy = open3d_intrinsics(K).astype(np.float64)
-            z = depth[rows, cols].astype(np.float64)
-            pose = open3d_pose(E).astype(np.float64)
-            pts = pose[:, :3] @ np.stack([(cols - cx) * z / fx, (rows - cy) * z / fy, z])
-            pts = pts + pose[:, 3:]
-            k = int(np.argmin(np.linalg.norm(pts.T - np.asarray(s.center), axis=1)))
+            u, v, z, _ = project(centre[None], K, E)
+            if z[0] > 0:
+                k = int(np.argmin((cols - u[0]) ** 2 + (rows - v[0]) ** 2))
+            else:
+                pts = back_project(rows, cols, depth, K, E)
+                k = int(np.argmin(np.linalg.norm(pts - centre, axis=1)))
         else:
             k = int(np.argmin((rows - rows.mean()) ** 2 + (cols - cols.mean()) ** 2))
         return int(cols[k]), int(rows[k])
