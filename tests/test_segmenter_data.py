@@ -162,6 +162,33 @@ def test_depth_contrast_rings_a_mask_as_a_scipy_dilation_does_at_the_frame_borde
             assert depth_contrast(m, depth) == pytest.approx(float(want), abs=1e-6)
 
 
+def test_plane_relief_reads_a_cards_thickness_on_a_slanted_table_and_a_texture_as_none():
+    from maniskill_tidy.perception.instances import Mask2D, depth_contrast, plane_relief
+
+    # a table seen at a slant through a pinhole camera: its inverse depth is affine in the
+    # pixel's row and column
+    rows, cols = np.mgrid[0:40, 0:40]
+    table = (1.0 / (0.25 + 0.012 * rows + 0.003 * cols)).astype(np.float32)
+    edge = np.zeros((40, 40), dtype=bool)
+    edge[34:, 8:16] = True  # at the frame's bottom: a ring above it only, farther off
+    assert depth_contrast(Mask2D(7, edge, 1.0), table) > 0.01  # a texture in relief
+    assert plane_relief(Mask2D(7, edge, 1.0), table) == pytest.approx(0, abs=1e-5)
+    patch = np.zeros((40, 40), dtype=bool)
+    patch[12:30, 8:16] = True
+    texture = Mask2D(7, patch, 1.0)
+    assert plane_relief(texture, table) == pytest.approx(0, abs=1e-5)
+    card = table.copy()
+    card[patch] -= 0.004  # 4 mm proud of the table along the optical axis
+    assert plane_relief(texture, card) == pytest.approx(0.004, abs=1e-4)
+    # the floor 70 cm below the table's edge in a third of the ring: trimmed off the plane
+    floor = card.copy()
+    floor[30:, :] += 0.7
+    assert plane_relief(texture, floor) == pytest.approx(0.004, abs=1e-4)
+    # under three ring pixels: no plane
+    whole = Mask2D(7, np.ones((40, 40), dtype=bool), 1.0)
+    assert np.isnan(plane_relief(whole, table))
+
+
 def test_instances_split_at_depth_jumps_and_score_a_perfect_prediction_at_ap_one(tiny):
     from maniskill_tidy.eval.mask_ap import mask_ap
     from maniskill_tidy.perception.instances import Mask2D, split_instances

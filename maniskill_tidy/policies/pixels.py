@@ -227,6 +227,7 @@ class PixelsAgent(Agent):
         # of view) failed for want of a view, which says nothing of the track
         self.aimed_in_frame = False
         self.refuted: set[int] = set()  # tracks a PickUp found nothing at: no object there
+        self.newly_refuted: list[int] = []  # refuted this step, for the team's agent to forget
         self.fails: Counter = Counter()  # track -> PickUps aimed at it that failed
         self.in_frame: dict[int, tuple] = {}  # this frame's object slots: (class, position)
 
@@ -271,7 +272,7 @@ class PixelsAgent(Agent):
                 and t.missed_clear >= MISSES
                 and t.missed_clear > t.seen_clear
             ):
-                self.refuted.add(t.id)
+                self._refute(t.id)
         for m, p, track in located:
             if track.id in self.refuted or track.sightings < CONFIRM:
                 continue  # still tracked, so its sightings stay explained
@@ -313,8 +314,12 @@ class PixelsAgent(Agent):
             return False
         return float(np.linalg.norm(p - camera)) <= HOLD_RANGE
 
+    def _refute(self, track: int) -> None:
+        if track not in self.refuted:
+            self.refuted.add(track)
+            self.newly_refuted.append(track)
+
     def observe(self, view: AgentView) -> None:
-        before = set(self.refuted)
         if self.aimed is not None and not view.failed:  # the last PickUp took what it aimed at
             self.held = self.aimed
         elif self.aimed is not None and self.aimed_in_frame and "out of reach" not in view.failed:
@@ -323,16 +328,17 @@ class PixelsAgent(Agent):
                 self.fails[t] += 1
                 # its pixel showed no object, or it failed again: a false detection
                 if view.failed.endswith(f"no object {NOTHING_DRAWN}") or self.fails[t] >= FAILS:
-                    self.refuted.add(t)
+                    self._refute(t)
         if not int(view.obs.get("held", 0)):
             self.held = 0
         self.aimed = None
         self.seg = self._frame(view.obs, view.step)
-        self._take_back(self.refuted - before)
+        self._take_back(self.newly_refuted)
+        self.newly_refuted = []
         obs = dict(view.obs, segmentation=self.seg, held=np.int32(self.held))
         self.inner.observe(dataclasses.replace(view, obs=obs))
 
-    def _take_back(self, tracks: set[int]) -> None:
+    def _take_back(self, tracks: list[int]) -> None:
         """Tell the team's agent which objects it was shown are refuted (if it can forget one:
         ``HeuristicAgent.forget``), so that it stops fetching what is not there."""
         forget = getattr(self.inner, "forget", None)

@@ -3,7 +3,9 @@ issued and why each failed (the env's reasons, grouped; a PickUp of an object no
 also by whether the renderer showed one of the aimed type), and how many of the object slots
 agents showed their team were ever an object of their type. Tells "detected, not picked"
 (``pixels-losses``) apart: tried at a pixel with nothing drawn, out of reach, or chasing a
-detection that is not there.
+detection that is not there. A PickUp aimed at no pixel (its target out of the frame) is also
+counted by the track behind the object it named: one the agent had already refuted (its team
+still fetching what its perception took back), one still live, or none.
 
     .venv/bin/python docs/research/probes/pixels_actions.py --policy heuristic-none \\
         --dataset data/tidy120 --episodes 4
@@ -64,6 +66,18 @@ class ActionOutcomes:
             if op in (Action.PickUp, Action.PutDown):
                 self.pending[name] = op.name
                 self.counts[f"{op.name} issued"] += 1
+            if op == Action.PickUp and a.target == (-1, -1):
+                self.counts["PickUp at no pixel: " + self._track_state(name)] += 1
+
+    def _track_state(self, name: str) -> str:
+        agent = self.agents.get(name)
+        sid = getattr(agent, "aimed", None)
+        if not hasattr(agent, "refuted"):
+            return "not a pixels agent"
+        tracks = agent.table.tracks_of(sid) if sid is not None else []
+        if not tracks:
+            return "no track behind its object"
+        return "a refuted track" if tracks[-1] in agent.refuted else "a live track"
 
     def log_step(self, t, obs, actions, info, channel, labels) -> None:
         for name, op in self.pending.items():
