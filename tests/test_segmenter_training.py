@@ -147,6 +147,23 @@ def test_a_tiny_segmenter_trains_resumes_and_loads(tiny_data, tmp_path, monkeypa
         (other / split / "manifest.json").write_text(json.dumps({"data_hash": "0" * 64}))
     with pytest.raises(ValueError, match="data hashes differ"):
         st.rescore(tmp_path / "a", other)
+    # the same views rendered with other bytes (another machine's llvmpipe): scored, and said
+    import shutil
+
+    shutil.rmtree(other)
+    shutil.copytree(tiny_data, other)
+    for split in ("val", "test"):
+        m = json.loads((other / split / "manifest.json").read_text())
+        (other / split / "manifest.json").write_text(json.dumps(dict(m, data_hash="1" * 64)))
+    elsewhere = st.rescore(tmp_path / "a", other)
+    assert elsewhere["scored_on"] == {"val": "1" * 64, "test": "1" * 64}
+    assert elsewhere["test"] == card["test"]
+    home = st.rescore(tmp_path / "a", tiny_data)
+    assert "scored_on" not in home and home["scored_before"][-1]["scored_on"]["val"] == "1" * 64
+    m = json.loads((other / "test" / "manifest.json").read_text())
+    (other / "test" / "manifest.json").write_text(json.dumps(dict(m, frames=m["frames"] + 1)))
+    with pytest.raises(ValueError, match="data hashes differ"):  # more test frames: other data
+        st.rescore(tmp_path / "a", other)
 
     # trained again into the same folder (another seed): the old card does not refuse it
     retrained = st.train_segmenter(_cfg(tiny_data, tmp_path / "a", seed=1), progress=False)

@@ -15,6 +15,7 @@ from __future__ import annotations
 import copy
 import io
 import json
+import sys
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -39,7 +40,7 @@ from maniskill_tidy.models.segmenter import (
 from maniskill_tidy.perception.instances import (
     Mask2D,
     coarse,
-    scored_by_contrast,
+    scored_by_relief,
     split_instances,
 )
 from maniskill_tidy.perception.seg_classes import seg_classes
@@ -150,8 +151,8 @@ def instance_pairs(
     for k in range(len(labels)):
         grid = coarse(depth[k], step)
         lab = labels[k] if relabel is None else relabel(labels[k], probs[k], grid)
-        masks = scored_by_contrast(split_instances(lab, grid, pickupable, probs[k], least),
-                                   grid, pickupable)  # fmt: skip
+        masks = scored_by_relief(split_instances(lab, grid, pickupable, probs[k], least),
+                                 grid, pickupable)  # fmt: skip
         truth = truth_masks(frames["cls"][k], frames["instance"][k], pickupable)
         pairs.append((truth, [m.upscaled(step) for m in masks]))
     return pairs, pickupable, upsample(labels, probs, depth.shape[1:3])[0]
@@ -350,12 +351,31 @@ def train_segmenter(cfg: SegTrainConfig, progress: bool = True) -> dict:
 
 
 def _frames(card: dict, data: Path) -> tuple[dict, dict]:
-    """The val and test frames a card was scored on (refused if the data hashes differ)."""
-    hashes = {s: json.loads((data / s / "manifest.json").read_text())["data_hash"]
-              for s in ("val", "test")}  # fmt: skip
-    if any(hashes[s] != card["config"]["data"][s] for s in hashes):
-        raise ValueError(f"{data}: not the frames the card was trained and scored on (data "
-                         "hashes differ)")  # fmt: skip
+    """The val and test frames a card was scored on. Frames made again on another machine
+    (same look, classes and number of frames, other bytes: frames are the same bytes on one
+    machine, not on every one) are read, with a warning, and their hashes recorded as the
+    card's ``scored_on``; other frames are refused."""
+    manifests = {s: json.loads((data / s / "manifest.json").read_text())
+                 for s in ("val", "test")}  # fmt: skip
+    differ = [s for s in manifests if manifests[s]["data_hash"] != card["config"]["data"][s]]
+    card.pop("scored_on", None)
+    if differ:
+        same_protocol = (
+            all(
+                manifests[s].get("env") == card["look"]
+                and manifests[s].get("classes") == card["config"]["classes"]
+                and manifests[s].get("frames", -1) >= card["frames"][s]
+                for s in manifests
+            )
+            and manifests["test"]["frames"] == card["frames"]["test"]
+        )
+        if not same_protocol:
+            raise ValueError(f"{data}: not the frames the card was trained and scored on (data "
+                             "hashes differ)")  # fmt: skip
+        print(f"warning: {data}: the {' and '.join(differ)} frames have the card's look, "
+              "classes and number but other bytes (made on another machine?): scored on "
+              "them, their hashes kept as the card's scored_on", file=sys.stderr)  # fmt: skip
+        card["scored_on"] = {s: manifests[s]["data_hash"] for s in manifests}
     cfg = card["config"]
     val = load_split(data / "val", cfg["limit"].get("val", cfg["eval_frames"]))
     return val, load_split(data / "test", cfg["limit"].get("test"))
@@ -363,7 +383,7 @@ def _frames(card: dict, data: Path) -> tuple[dict, dict]:
 
 def _keep_scores(card: dict) -> dict:
     """``card`` with its current scores appended to ``scored_before``, before a rescoring."""
-    scores = {k: card[k] for k in ("val", "test", "agent_threshold")}
+    scores = {k: card[k] for k in ("val", "test", "agent_threshold", "scored_on") if k in card}
     card["scored_before"] = [*card.get("scored_before", []), scores]
     return card
 
