@@ -120,24 +120,25 @@ def test_instances_are_the_components_of_a_pixel_graph():
 
 
 def test_a_mask_in_front_of_its_surroundings_keeps_its_score_a_flat_patch_loses_half():
-    from maniskill_tidy.perception.instances import (
-        Mask2D,
-        depth_contrast,
-        scored_by_contrast,
-    )
+    from maniskill_tidy.perception.instances import Mask2D, depth_contrast, scored_by_relief
 
     depth = np.full((30, 30), 2.0, dtype=np.float32)
     depth[5:10, 5:10] = 1.9  # a box standing 10 cm proud of the floor behind it
-    box = np.zeros((30, 30), dtype=bool)
-    box[5:10, 5:10] = True
+    depth[14:17, 5:12] = 1.996  # a credit card, 4 mm thick
+    box, card = np.zeros((30, 30), dtype=bool), np.zeros((30, 30), dtype=bool)
+    box[5:10, 5:10] = card[14:17, 5:12] = True
     patch = np.zeros((30, 30), dtype=bool)
     patch[20:25, 20:25] = True  # floor texture taken for an object
     assert depth_contrast(Mask2D(7, box, 0.9), depth) == pytest.approx(0.1)
     assert depth_contrast(Mask2D(7, patch, 0.9, (slice(20, 25), slice(20, 25))), depth) == 0
-    a, b, c = scored_by_contrast([Mask2D(7, box, 0.9), Mask2D(7, patch, 0.9),
-                                  Mask2D(3, patch, 0.9)], depth, [7])  # fmt: skip
+    a, b, c, d = scored_by_relief([Mask2D(7, box, 0.9), Mask2D(7, patch, 0.9),
+                                   Mask2D(3, patch, 0.9), Mask2D(7, card, 0.9)],
+                                  depth, [7])  # fmt: skip
     assert a.score == pytest.approx(0.9, abs=1e-3) and b.score == pytest.approx(0.45)
     assert c.score == 0.9  # not an object class: untouched
+    assert d.score > 0.78  # a thin one above the agents' threshold (the 1 cm contrast: 0.54)
+    whole = Mask2D(7, np.ones((30, 30), dtype=bool), 0.9)  # no ring, no plane: no contrast
+    assert scored_by_relief([whole], depth, [7])[0].score == pytest.approx(0.45)
 
 
 def test_depth_contrast_rings_a_mask_as_a_scipy_dilation_does_at_the_frame_borders_too():
@@ -180,10 +181,20 @@ def test_plane_relief_reads_a_cards_thickness_on_a_slanted_table_and_a_texture_a
     card = table.copy()
     card[patch] -= 0.004  # 4 mm proud of the table along the optical axis
     assert plane_relief(texture, card) == pytest.approx(0.004, abs=1e-4)
-    # the floor 70 cm below the table's edge in a third of the ring: trimmed off the plane
+    # the floor 70 cm below the table's edge in a sixth of the ring: trimmed off the plane
     floor = card.copy()
     floor[30:, :] += 0.7
     assert plane_relief(texture, floor) == pytest.approx(0.004, abs=1e-4)
+    # a kettle between a counter (below) and the wall behind (above): the ring lies on two
+    # surfaces, no plane fits most of it; its relief is then the median contrast, positive
+    from maniskill_tidy.perception.instances import relief
+
+    kitchen = np.where(rows < 21, 2.0, 1.5 + 0.01 * rows).astype(np.float32)
+    kettle = np.zeros((40, 40), dtype=bool)
+    kettle[12:30, 15:25] = True
+    kitchen[kettle] = 1.35
+    assert np.isnan(plane_relief(Mask2D(7, kettle, 1.0), kitchen))
+    assert relief(Mask2D(7, kettle, 1.0), kitchen) > 0.1
     # under three ring pixels: no plane
     whole = Mask2D(7, np.ones((40, 40), dtype=bool), 1.0)
     assert np.isnan(plane_relief(whole, table))

@@ -157,7 +157,7 @@ def split_instances(
     return out
 
 
-CONTRAST_SCALE = 0.01  # metres: a mask this much nearer than its ring scores 0.73 of itself
+RELIEF_SCALE = 0.002  # metres: a mask this far in front of its ring's plane keeps 0.73 of its score
 
 
 @njit(cache=True, nogil=True)
@@ -193,15 +193,19 @@ def _contrast(inside, depth, ring):
 
 
 RELIEF_TRIM = 0.02  # metres: a ring pixel this far off the first plane lies on another surface
+# a plane that fewer than this share of the ring lies on (within ON_PLANE) is no plane: the
+# ring spans two surfaces (a kettle between a counter and the wall behind it)
+PLANE_SHARE, ON_PLANE = 0.5, 0.005
 
 
 @njit(cache=True, nogil=True)
-def _plane_relief(inside, depth, ring, trim):
+def _plane_relief(inside, depth, ring, trim, share, on_plane):
     """How far the mask's pixels lie in front of the plane through the pixels within ``ring``
     4-neighbour steps of it (median, metres along the optical axis): the plane fitted once,
     refitted without the ring pixels more than ``trim`` off it. A plane's inverse depth is
-    affine in the pixel's row and column, so the fit is linear. NaN where no plane is found
-    (under three ring pixels, or all on one line)."""
+    affine in the pixel's row and column, so the fit is linear. NaN where no plane is found:
+    under three ring pixels, all on one line, or under ``share`` of them within ``on_plane``
+    of the refitted plane."""
     h, w = inside.shape
     pts = np.empty((h * w, 3))  # row, column, depth
     own = np.empty((h * w, 3))
@@ -255,6 +259,12 @@ def _plane_relief(inside, depth, ring, trim):
             for i in range(n_near):
                 q = coef[0] * pts[i, 0] + coef[1] * pts[i, 1] + coef[2]
                 used[i] = q > 0 and abs(1.0 / q - pts[i, 2]) <= trim
+    near = 0
+    for i in range(n_near):
+        q = coef[0] * pts[i, 0] + coef[1] * pts[i, 1] + coef[2]
+        near += q > 0 and abs(1.0 / q - pts[i, 2]) <= on_plane
+    if near < share * n_near:
+        return np.nan
     out = np.empty(n_own)
     k = 0
     for i in range(n_own):
@@ -274,11 +284,13 @@ def _ring_window(mask: Mask2D, depth: np.ndarray, ring: int):
     return inside, np.ascontiguousarray(d, dtype=np.float32)
 
 
-def plane_relief(mask: Mask2D, depth: np.ndarray, ring: int = 2) -> float:
-    """How far a mask stands in front of the plane of what surrounds it (metres, NaN where its
-    surroundings fit no plane): a credit card on a table stands its thickness proud of the
-    table's plane, a floor texture taken for an object none, at any slant."""
-    return float(_plane_relief(*_ring_window(mask, depth, ring), ring, RELIEF_TRIM))
+def plane_relief(mask: Mask2D, depth: np.ndarray, ring: int = 2,
+                 share: float = PLANE_SHARE) -> float:  # fmt: skip
+    """How far a mask stands in front of the plane of what surrounds it (metres, NaN where no
+    plane holds ``share`` of its surroundings): a credit card on a table stands its thickness
+    proud of the table's plane, a floor texture taken for an object none, at any slant."""
+    return float(_plane_relief(*_ring_window(mask, depth, ring), ring, RELIEF_TRIM, share,
+                               ON_PLANE))  # fmt: skip
 
 
 def depth_contrast(mask: Mask2D, depth: np.ndarray, ring: int = 2) -> float:
@@ -289,15 +301,24 @@ def depth_contrast(mask: Mask2D, depth: np.ndarray, ring: int = 2) -> float:
     return float(_contrast(*_ring_window(mask, depth, ring), ring))
 
 
-def scored_by_contrast(masks: list[Mask2D], depth: np.ndarray, classes) -> list[Mask2D]:
+def relief(mask: Mask2D, depth: np.ndarray) -> float:
+    """:func:`plane_relief`, or :func:`depth_contrast` where the ring fits no plane."""
+    height = plane_relief(mask, depth)
+    return depth_contrast(mask, depth) if np.isnan(height) else height
+
+
+def scored_by_relief(masks: list[Mask2D], depth: np.ndarray, classes) -> list[Mask2D]:
     """The masks, those of ``classes`` (the pickupable types) with their score times the
-    logistic of their depth contrast over ``CONTRAST_SCALE``: on val frames of the v2
-    segmenter, mask AP50 0.389 against 0.325 by confidence alone (research log)."""
+    logistic of their :func:`relief` over ``RELIEF_SCALE``: an object stands in front of what
+    it lies on, a false mask on a floor texture does not. On 400 val frames of the v2
+    segmenter, mask AP50 0.449 against 0.399 by confidence alone and 0.436 with the median depth
+    contrast over 1 cm, which kept thin objects (cards, CDs, pens) under the agents' threshold:
+    0.40 of them found there against 0.20 (research log)."""
     wanted = set(int(c) for c in classes)
     out = []
     for m in masks:
         if m.cls in wanted:
-            gate = 1.0 / (1.0 + np.exp(-depth_contrast(m, depth) / CONTRAST_SCALE))
+            gate = 1.0 / (1.0 + np.exp(-np.clip(relief(m, depth) / RELIEF_SCALE, -50, 50)))
             m = Mask2D(m.cls, m.mask, m.score * float(gate), m.box)
         out.append(m)
     return out

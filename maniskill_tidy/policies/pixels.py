@@ -43,7 +43,7 @@ import numpy as np
 from scipy import ndimage
 
 from maniskill_tidy.envs.actions import MIN_PIXELS, NOTHING_DRAWN, Action, Targeted
-from maniskill_tidy.perception.instances import coarse, scored_by_contrast, split_instances
+from maniskill_tidy.perception.instances import coarse, scored_by_relief, split_instances
 from maniskill_tidy.perception.seg_classes import STRUCTURE, seg_classes
 from maniskill_tidy.perception.tracks import (
     Tracker,
@@ -249,7 +249,7 @@ class PixelsAgent(Agent):
         start = time.perf_counter()
         masks = split_instances(labels, depth_g, self.instance_classes, probs,
                                 -(-MIN_PIXELS // grid**2))  # fmt: skip
-        masks = scored_by_contrast(masks, depth_g, self.object_classes)
+        masks = scored_by_relief(masks, depth_g, self.object_classes)
         named = time.perf_counter()
         self.segmenter.seconds["instances"] += named - start
         for m, p in zip(masks, mask_positions(masks, depth_g, K, E), strict=True):

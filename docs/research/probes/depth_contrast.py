@@ -3,10 +3,13 @@ Val mask AP50 and best F1 of a segmenter's object masks (made as agents make the
 network's grid) scored by confidence alone, kept only above a contrast, and scored by
 confidence times the logistic of a relief over a scale: the median depth contrast with the
 ring around the mask (``perception/instances.py: depth_contrast``) or its height above the
-ring's plane (``plane_relief``, the median contrast where no plane fits). Then, for the masks a
+ring's plane (``plane_relief``, the median contrast where no plane fits, or where the plane
+holds under a given share of the ring: ``relief`` ships 0.5). Then, for the masks a
 perfect segmenter gives (the frames' own classes, each mask's score 1), the share of real
-objects each gate keeps at ``KEEP_THRESHOLD``: for all objects and for thin ones (every asset
-of the type under 1.5 cm in some dimension: credit cards, CDs, pens, pencils).
+objects each gate keeps at ``KEEP_THRESHOLD`` and lets start a track (at that gate's best-F1
+threshold): for all objects and for thin ones (every asset of the type under 1.5 cm in some
+dimension: credit cards, CDs, pens, pencils); and the learned segmenter's recall of thin
+objects there.
 
     .venv/bin/python docs/research/probes/depth_contrast.py agents/segmenter-v2 \\
         --data data/segmenter/HeteroTidy-v2/val --frames 400
@@ -22,6 +25,7 @@ import segmenter_probe
 
 from maniskill_tidy.envs.actions import MIN_PIXELS
 from maniskill_tidy.eval.mask_ap import mask_ap, score_threshold
+from maniskill_tidy.eval.pixels_losses import IOU
 from maniskill_tidy.knowledge.catalog import load_assets
 from maniskill_tidy.models.segmenter import predict
 from maniskill_tidy.perception.instances import (
@@ -45,20 +49,32 @@ def thin_types() -> set[str]:
 
 
 def logistic(x: float, scale: float) -> float:
-    return 1.0 / (1.0 + np.exp(-x / scale))
+    return float(1.0 / (1.0 + np.exp(-np.clip(x / scale, -50, 50))))
 
 
-GATES = {  # name -> gate of (median contrast, plane relief)
-    "median contrast / 1 cm (shipped)": lambda con, rel: logistic(con, 0.01),
-    **{f"plane relief / {s * 1000:.0f} mm": lambda con, rel, s=s: logistic(
-        con if np.isnan(rel) else rel, s) for s in (0.002, 0.003, 0.005, 0.01)},
+SHARES = (0.0, 0.5, 0.75, 0.9)  # least share of the ring on its plane (0: any plane)
+
+
+def planar(con: float, rel: dict, share: float) -> float:
+    """The plane relief where a plane holds ``share`` of the ring, else the median contrast."""
+    return con if np.isnan(rel[share]) else rel[share]
+
+
+GATES = {  # name -> gate of (median contrast, {share: plane relief})
+    "median contrast / 1 cm (was shipped)": lambda con, rel: logistic(con, 0.01),
     **{f"median contrast / {s * 1000:.0f} mm": lambda con, rel, s=s: logistic(con, s)
        for s in (0.003, 0.005)},
+    **{f"plane relief / {s * 1000:.0f} mm, any plane": lambda con, rel, s=s: logistic(
+        planar(con, rel, 0.0), s) for s in (0.002, 0.003, 0.005, 0.01)},
+    **{f"plane relief / {s * 1000:.0f} mm, on {share} of the ring": lambda con, rel, s=s,
+       share=share: logistic(planar(con, rel, share), s)
+       for s in (0.002, 0.003) for share in SHARES[1:]},
 }  # fmt: skip
 
 
 def reliefs(masks, grid) -> list[tuple]:
-    return [(m, depth_contrast(m, grid), plane_relief(m, grid)) for m in masks]
+    return [(m, depth_contrast(m, grid), {s: plane_relief(m, grid, share=s) for s in SHARES})
+            for m in masks]  # fmt: skip
 
 
 def main() -> None:
@@ -87,25 +103,45 @@ def main() -> None:
     print(f"{len(labels)} frames; {len(perfect)} perfect-label object masks, "
           f"{sum(p[0] in thin for p in perfect)} of thin types")  # fmt: skip
 
-    def scored(name: str, f) -> None:
+    def scored(name: str, f) -> float:
         pairs = [(t, [dataclasses.replace(m.upscaled(step), score=f(m.score, con, rel))
                       for m, con, rel in masks if f(m.score, con, rel) > 0])
                  for t, masks in rows]  # fmt: skip
         r = mask_ap(pairs, pick, shape, ignore_below=MIN_PIXELS)
         b = score_threshold(pairs, pick, shape, ignore_below=MIN_PIXELS)
         print(f"{name}: AP50 {r['AP50']:.3f}, AP {r['AP']:.3f}; best F1 {b['f1']:.3f} "
-              f"(P {b['precision']:.2f}, R {b['recall']:.2f})")  # fmt: skip
+              f"(P {b['precision']:.2f}, R {b['recall']:.2f}) at {b['threshold']:.3f}; "
+              f"thin objects found there {found(pairs, thin, b['threshold']):.2f}")  # fmt: skip
+        return b["threshold"]
 
     scored("confidence", lambda s, con, rel: s)
     for t in (0.0, 0.01, 0.02):
         scored(f"kept above {t:.2f} m", lambda s, con, rel, t=t: s if con > t else 0.0)
+    starts = {name: scored(f"times {name}", lambda s, con, rel, g=gate: s * g(con, rel))
+              for name, gate in GATES.items()}  # fmt: skip
+    print(f"perfect labels, share kept at {KEEP_THRESHOLD} / starting a track at the best F1's "
+          "threshold (all; thin types):")  # fmt: skip
+    is_thin = np.array([cls in thin for cls, _, _ in perfect])
     for name, gate in GATES.items():
-        scored(f"times {name}", lambda s, con, rel, g=gate: s * g(con, rel))
-    print(f"perfect labels, share kept at {KEEP_THRESHOLD} (all / thin types):")
-    for name, gate in GATES.items():
-        kept = np.array([gate(con, rel) >= KEEP_THRESHOLD for _, con, rel in perfect])
-        is_thin = np.array([cls in thin for cls, _, _ in perfect])
-        print(f"  {name}: {kept.mean():.3f} / {kept[is_thin].mean():.3f}")
+        g = np.array([gate(con, rel) for _, con, rel in perfect])
+        kept, start = g >= KEEP_THRESHOLD, g >= starts[name]
+        print(f"  {name}: {kept.mean():.3f} / {start.mean():.3f}; "
+              f"{kept[is_thin].mean():.3f} / {start[is_thin].mean():.3f}")  # fmt: skip
+
+
+def found(pairs, classes: set[int], threshold: float) -> float:
+    """Share of the true objects of ``classes`` (``MIN_PIXELS`` or more) a mask of their type
+    scoring ``threshold`` or more covers with IoU 0.5: the recall agents get for them."""
+    hit = n = 0
+    for truth, masks in pairs:
+        for t in truth:
+            if t.cls not in classes or t.area < MIN_PIXELS:
+                continue
+            n += 1
+            hit += any(m.cls == t.cls and m.score >= threshold
+                       and (m.mask & t.mask).sum() >= IOU * (m.mask | t.mask).sum()
+                       for m in masks)  # fmt: skip
+    return hit / max(n, 1)
 
 
 if __name__ == "__main__":
