@@ -333,7 +333,8 @@ def test_the_cross_look_table_refuses_missing_frames_and_weights(tmp_path):
     assert not out.with_suffix(".json").exists() and not out.with_suffix(".md").exists()
 
 
-@pytest.mark.parametrize(("option", "value"), [("--focus", "1.5"), ("--zoom", "0.5")])
+@pytest.mark.parametrize(("option", "value"), [("--focus", "1.5"), ("--zoom", "0.5"),
+                                              ("--lr", "0"), ("--init", "agents/none")])
 def test_train_segmenter_refuses_options_out_of_range_before_reading_frames(tmp_path, option,
                                                                            value):  # fmt: skip
     out = tmp_path / "seg"

@@ -24,9 +24,9 @@ def tiny_data(tmp_path_factory):
 def _cfg(data, out, **kw):
     from maniskill_tidy.training.segmenter_trainer import SegTrainConfig
 
-    kw = {"lr": 0.01, **kw}  # a few steps: a high rate, so that the loss can fall in them
-    return SegTrainConfig(str(data), str(out), epochs=3, batch=4, crop=64,
-                          widths=(8, 8, 16, 16, 16), **kw)  # fmt: skip
+    # a few steps: a high rate, so that the loss can fall in them
+    kw = {"lr": 0.01, "epochs": 3, "widths": (8, 8, 16, 16, 16), **kw}
+    return SegTrainConfig(str(data), str(out), batch=4, crop=64, **kw)
 
 
 def test_a_tiny_segmenter_trains_resumes_and_loads(tiny_data, tmp_path, monkeypatch):
@@ -169,6 +169,34 @@ def test_a_tiny_segmenter_trains_resumes_and_loads(tiny_data, tmp_path, monkeypa
     retrained = st.train_segmenter(_cfg(tiny_data, tmp_path / "a", seed=1), progress=False)
     assert retrained["weights_sha256"] != card["weights_sha256"]
     assert load_segmenter(tmp_path / "a")[1]["weights_sha256"] == retrained["weights_sha256"]
+
+
+def test_a_run_can_start_from_a_trained_segmenters_weights(tiny_data, tmp_path):
+    """``--init``: its weights start the run (at a vanishing rate its parameters come out
+    unchanged, batch norm's statistics aside; from scratch they do not), the card names them;
+    another architecture is refused."""
+    import torch
+
+    from maniskill_tidy.models.checkpoints import load_segmenter
+    from maniskill_tidy.training import segmenter_trainer as st
+
+    def parameters(folder):
+        return dict(load_segmenter(tmp_path / folder)[0].named_parameters())
+
+    first = st.train_segmenter(_cfg(tiny_data, tmp_path / "a", epochs=1), progress=False)
+    still = st.train_segmenter(_cfg(tiny_data, tmp_path / "b", epochs=1, lr=1e-12,
+                                    init=str(tmp_path / "a")), progress=False)  # fmt: skip
+    a = parameters("a")
+    assert all(torch.equal(a[k], p) for k, p in parameters("b").items())
+    assert still["init"]["weights_sha256"] == first["weights_sha256"]
+    assert still["init"]["from"] == "a" and still["init"]["epochs"] == 1
+    fresh = st.train_segmenter(_cfg(tiny_data, tmp_path / "c", epochs=1, lr=1e-12),
+                               progress=False)  # fmt: skip
+    assert not all(torch.equal(a[k], p) for k, p in parameters("c").items())
+    assert "init" not in fresh
+    with pytest.raises(ValueError, match="widths \\[8, 8, 16, 16, 16\\].*expected"):
+        st.train_segmenter(_cfg(tiny_data, tmp_path / "d", init=str(tmp_path / "a"),
+                                widths=(8, 8, 8, 16, 16)), progress=False)  # fmt: skip
 
 
 def test_a_segmenter_with_a_stem_a_hidden_head_and_relief_saves_and_loads(tmp_path):

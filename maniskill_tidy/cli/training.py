@@ -100,6 +100,11 @@ def _train_segmenter(args: argparse.Namespace) -> int:
     if args.stem < 0 or args.head < 0:
         raise ValueError(f"--stem {args.stem}, --head {args.head}: expected 0 (none) or a "
                          "number of channels")  # fmt: skip
+    if not 0 < args.lr <= 0.1:
+        raise ValueError(f"--lr {args.lr}: expected a learning rate in (0, 0.1]")
+    if args.init and not (Path(args.init) / "card.json").is_file():
+        raise FileNotFoundError(f"--init {args.init}: no card.json; expected a segmenter "
+                                "trained by `maniskill-tidy train-segmenter`")  # fmt: skip
     if args.epochs < 1 or args.batch < 1 or not 16 <= args.crop <= 224 or args.crop % 2:
         raise ValueError(f"--epochs {args.epochs}, --batch {args.batch}, --crop {args.crop}: "
                          "expected at least 1, at least 1, an even size in 16..224")  # fmt: skip
@@ -107,7 +112,7 @@ def _train_segmenter(args: argparse.Namespace) -> int:
     cfg = SegTrainConfig(args.data, args.out, epochs=args.epochs, batch=args.batch,
                          crop=args.crop, seed=args.seed, stem=args.stem, head=args.head,
                          zoom=args.zoom, relief=args.relief, focus=args.focus,
-                         weight_power=args.weight_power,
+                         weight_power=args.weight_power, lr=args.lr, init=args.init,
                          objectness=args.objectness, **extra)  # fmt: skip
     card = train_segmenter(cfg)
     t, v = card["test"], card["val"]
@@ -305,6 +310,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     ts.add_argument("--objectness", type=float, default=0.0,
                     help="weight of a Dice loss on which pixels are pickupable objects beside "
                     "the cross-entropy (0: none)")  # fmt: skip
+    ts.add_argument("--lr", type=float, default=2e-3, help="peak learning rate (one cycle)")
+    ts.add_argument("--init", help="a trained segmenter's folder whose weights start this run "
+                    "(same widths, stem, head and relief)")  # fmt: skip
     ts.add_argument("--rescore", action="store_true",
                     help="score the trained segmenter in --out again on --data's val and test "
                     "frames (its card's val, test and agent threshold)")  # fmt: skip

@@ -161,17 +161,17 @@ RELIEF_SCALE = 0.002  # metres: a mask this far in front of its ring's plane kee
 
 
 @njit(cache=True, nogil=True)
-def _contrast(inside, depth, ring):
-    """Median depth of the pixels within ``ring`` 4-neighbour steps of the mask (outside it)
-    less the mask's own, over a window holding both; 0 where either is empty."""
+def _mask_and_ring(inside, depth, ring):
+    """The mask's pixels and those within ``ring`` 4-neighbour steps of it (outside it), each
+    as (row, column, depth): what both measures of relief read."""
     h, w = inside.shape
-    own = np.empty(h * w, np.float32)
-    near = np.empty(h * w, np.float32)
+    own = np.empty((h * w, 3))
+    near = np.empty((h * w, 3))
     n_own = n_near = 0
     for r in range(h):
         for c in range(w):
             if inside[r, c]:
-                own[n_own] = depth[r, c]
+                own[n_own, 0], own[n_own, 1], own[n_own, 2] = r, c, depth[r, c]
                 n_own += 1
                 continue
             found = False
@@ -185,11 +185,17 @@ def _contrast(inside, depth, ring):
                 if found:
                     break
             if found:
-                near[n_near] = depth[r, c]
+                near[n_near, 0], near[n_near, 1], near[n_near, 2] = r, c, depth[r, c]
                 n_near += 1
-    if n_own == 0 or n_near == 0:
+    return own[:n_own], near[:n_near]
+
+
+@njit(cache=True, nogil=True)
+def _median_contrast(own, near):
+    """Median depth of the ring less the mask's; 0 where either is empty."""
+    if len(own) == 0 or len(near) == 0:
         return 0.0
-    return np.median(near[:n_near]) - np.median(own[:n_own])
+    return np.median(near[:, 2]) - np.median(own[:, 2])
 
 
 RELIEF_TRIM = 0.02  # metres: a ring pixel this far off the first plane lies on another surface
@@ -199,39 +205,22 @@ PLANE_SHARE, ON_PLANE = 0.5, 0.005
 
 
 @njit(cache=True, nogil=True)
-def _plane_relief(inside, depth, ring, trim, share, on_plane):
-    """How far the mask's pixels lie in front of the plane through the pixels within ``ring``
-    4-neighbour steps of it (median, metres along the optical axis): the plane fitted once,
-    refitted without the ring pixels more than ``trim`` off it. A plane's inverse depth is
-    affine in the pixel's row and column, so the fit is linear. NaN where no plane is found:
-    under three ring pixels, all on one line, or under ``share`` of them within ``on_plane``
-    of the refitted plane."""
-    h, w = inside.shape
-    pts = np.empty((h * w, 3))  # row, column, depth
-    own = np.empty((h * w, 3))
-    n_own = n_near = 0
+def _plane_height(own, near, shape, trim, share, on_plane):
+    """How far the mask's pixels lie in front of the plane through its ring's (median, metres
+    along the optical axis): the plane fitted once, refitted without the ring pixels more
+    than ``trim`` off it. A plane's inverse depth is affine in the pixel's row and column, so
+    the fit is linear. NaN where no plane is found: under three ring pixels with a depth, all
+    on one line, or under ``share`` of them within ``on_plane`` of the refitted plane."""
+    h, w = shape
     rc, cc, s = (h - 1) / 2.0, (w - 1) / 2.0, float(max(h, w))
-    for r in range(h):
-        for c in range(w):
-            z = depth[r, c]
-            if inside[r, c]:
-                own[n_own, 0], own[n_own, 1], own[n_own, 2] = (r - rc) / s, (c - cc) / s, z
-                n_own += 1
-                continue
-            found = False
-            for dr in range(-ring, ring + 1):
-                reach = ring - abs(dr)
-                for dc in range(-reach, reach + 1):
-                    rr, cx = r + dr, c + dc
-                    if 0 <= rr < h and 0 <= cx < w and inside[rr, cx]:
-                        found = True
-                        break
-                if found:
-                    break
-            if found and z > 0:
-                pts[n_near, 0], pts[n_near, 1], pts[n_near, 2] = (r - rc) / s, (c - cc) / s, z
-                n_near += 1
-    if n_own == 0 or n_near < 3:
+    pts = np.empty((len(near), 3))  # centred and scaled row and column, depth
+    n_near = 0
+    for i in range(len(near)):
+        if near[i, 2] > 0:
+            pts[n_near, 0], pts[n_near, 1] = (near[i, 0] - rc) / s, (near[i, 1] - cc) / s
+            pts[n_near, 2] = near[i, 2]
+            n_near += 1
+    if len(own) == 0 or n_near < 3:
         return np.nan
     used = np.ones(n_near, dtype=np.bool_)
     coef = np.zeros(3)
@@ -259,20 +248,29 @@ def _plane_relief(inside, depth, ring, trim, share, on_plane):
             for i in range(n_near):
                 q = coef[0] * pts[i, 0] + coef[1] * pts[i, 1] + coef[2]
                 used[i] = q > 0 and abs(1.0 / q - pts[i, 2]) <= trim
-    near = 0
+    on = 0
     for i in range(n_near):
         q = coef[0] * pts[i, 0] + coef[1] * pts[i, 1] + coef[2]
-        near += q > 0 and abs(1.0 / q - pts[i, 2]) <= on_plane
-    if near < share * n_near:
+        on += q > 0 and abs(1.0 / q - pts[i, 2]) <= on_plane
+    if on < share * n_near:
         return np.nan
-    out = np.empty(n_own)
+    out = np.empty(len(own))
     k = 0
-    for i in range(n_own):
-        q = coef[0] * own[i, 0] + coef[1] * own[i, 1] + coef[2]
+    for i in range(len(own)):
+        q = coef[0] * (own[i, 0] - rc) / s + coef[1] * (own[i, 1] - cc) / s + coef[2]
         if q > 0:
             out[k] = 1.0 / q - own[i, 2]
             k += 1
     return np.median(out[:k]) if k else np.nan
+
+
+@njit(cache=True, nogil=True)
+def _relief(inside, depth, ring, trim, share, on_plane):
+    """The plane height, or the median contrast where no plane fits, from one walk of the
+    ring."""
+    own, near = _mask_and_ring(inside, depth, ring)
+    height = _plane_height(own, near, inside.shape, trim, share, on_plane)
+    return _median_contrast(own, near) if np.isnan(height) else height
 
 
 def _ring_window(mask: Mask2D, depth: np.ndarray, ring: int):
@@ -289,8 +287,9 @@ def plane_relief(mask: Mask2D, depth: np.ndarray, ring: int = 2,
     """How far a mask stands in front of the plane of what surrounds it (metres, NaN where no
     plane holds ``share`` of its surroundings): a credit card on a table stands its thickness
     proud of the table's plane, a floor texture taken for an object none, at any slant."""
-    return float(_plane_relief(*_ring_window(mask, depth, ring), ring, RELIEF_TRIM, share,
-                               ON_PLANE))  # fmt: skip
+    inside, d = _ring_window(mask, depth, ring)
+    own, near = _mask_and_ring(inside, d, ring)
+    return float(_plane_height(own, near, inside.shape, RELIEF_TRIM, share, ON_PLANE))
 
 
 def depth_contrast(mask: Mask2D, depth: np.ndarray, ring: int = 2) -> float:
@@ -298,13 +297,13 @@ def depth_contrast(mask: Mask2D, depth: np.ndarray, ring: int = 2) -> float:
     4-neighbour steps, outside it): median depths, metres. An object stands in front of what
     it lies on; a patch of floor or wood texture taken for one does not. Compiled: a scipy
     dilation per mask cost 1.3 ms per agent frame."""
-    return float(_contrast(*_ring_window(mask, depth, ring), ring))
+    return float(_median_contrast(*_mask_and_ring(*_ring_window(mask, depth, ring), ring)))
 
 
-def relief(mask: Mask2D, depth: np.ndarray) -> float:
+def relief(mask: Mask2D, depth: np.ndarray, ring: int = 2) -> float:
     """:func:`plane_relief`, or :func:`depth_contrast` where the ring fits no plane."""
-    height = plane_relief(mask, depth)
-    return depth_contrast(mask, depth) if np.isnan(height) else height
+    return float(_relief(*_ring_window(mask, depth, ring), ring, RELIEF_TRIM, PLANE_SHARE,
+                         ON_PLANE))  # fmt: skip
 
 
 def scored_by_relief(masks: list[Mask2D], depth: np.ndarray, classes) -> list[Mask2D]:

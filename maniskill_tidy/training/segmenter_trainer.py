@@ -75,6 +75,9 @@ class SegTrainConfig:
     objectness: float = 0.0
     zoom: float = 1.0  # half the crops blown up by up to this factor (1: none)
     relief: bool = False  # the depth's local relief as input channels (models/segmenter.py)
+    # a trained segmenter's folder whose weights start this run (its architecture, which the
+    # run's must match): more epochs for a run whose loss still fell at its end
+    init: str | None = None
     limit: dict = field(default_factory=dict)  # split -> at most this many frames (tests)
 
 
@@ -232,6 +235,21 @@ def _crops(frames: dict, index: np.ndarray, crop: int, rng: np.random.Generator,
     return tuple(torch.stack(s) for s in out)
 
 
+def _start(cfg: SegTrainConfig, model: Segmenter) -> dict:
+    """Load ``cfg.init``'s weights into ``model``; what the card says of them."""
+    init, card = checkpoints.load_segmenter(Path(cfg.init))
+    theirs = card.get("config", {})
+    ours = {"widths": list(cfg.widths), "stem": cfg.stem, "head": cfg.head, "relief": cfg.relief}
+    if any(theirs.get(k, v) != v for k, v in ours.items()):
+        raise ValueError(f"--init {cfg.init}: trained with " + ", ".join(
+            f"{k} {theirs.get(k)}" for k in ours) + "; expected this run's " + ", ".join(
+            f"{k} {v}" for k, v in ours.items()))  # fmt: skip
+    model.load_state_dict(init.state_dict())
+    return {"from": card.get("name", Path(cfg.init).name), "weights_sha256":
+            checkpoints.weights_sha256(Path(cfg.init)), "epochs": theirs.get("epochs"),
+            "train_seconds": card.get("train_seconds")}  # fmt: skip
+
+
 def _rank(scores: dict) -> tuple[float, float]:
     """How val ranks epochs: mask AP50, then pixel accuracy (a segmenter that finds no object
     yet still learns the floor and walls teams map with)."""
@@ -257,6 +275,7 @@ def train_segmenter(cfg: SegTrainConfig, progress: bool = True) -> dict:
     val = load_split(data / "val", cfg.limit.get("val", cfg.eval_frames))
     torch.manual_seed(cfg.seed)
     model = Segmenter(len(classes.names), cfg.widths, cfg.stem, cfg.head, cfg.relief)
+    start = _start(cfg, model) if cfg.init else None
     optimiser = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=1e-4)
     steps = cfg.epochs * max(1, len(train["rgb"]) // cfg.batch)
     schedule = torch.optim.lr_scheduler.OneCycleLR(optimiser, cfg.lr, total_steps=steps)
@@ -264,6 +283,8 @@ def train_segmenter(cfg: SegTrainConfig, progress: bool = True) -> dict:
     key = {**asdict(cfg), "widths": list(cfg.widths), "classes": classes.digest,
            "data": {s: m["data_hash"] for s, m in manifests.items()}}  # fmt: skip
     key.pop("out")
+    if start:  # the weights it starts from, not where they lay
+        key["init"] = start["weights_sha256"]
     ckpt = out / "checkpoint.pt"
     state = {"epoch": 0, "seconds": 0.0, "curve": [], "best": None, "best_epoch": 0}
     best_state = copy.deepcopy(model.state_dict())
@@ -338,6 +359,7 @@ def train_segmenter(cfg: SegTrainConfig, progress: bool = True) -> dict:
         "parameters": sum(p.numel() for p in model.parameters()),
         "frames": {"train": len(train["rgb"]), "val": len(val["rgb"]), "test": len(test["rgb"])},
         "best_epoch": state["best_epoch"],
+        **({"init": start} if start else {}),
         "curve": state["curve"],
         "train_seconds": round(state["seconds"], 1),
         "weights_sha256": checkpoints.weights_sha256(out),
@@ -350,15 +372,16 @@ def train_segmenter(cfg: SegTrainConfig, progress: bool = True) -> dict:
     return card
 
 
-def _frames(card: dict, data: Path) -> tuple[dict, dict]:
-    """The val and test frames a card was scored on. Frames made again on another machine
-    (same look, classes and number of frames, other bytes: frames are the same bytes on one
-    machine, not on every one) are read, with a warning, and their hashes recorded as the
-    card's ``scored_on``; other frames are refused."""
+def _frames(card: dict, data: Path) -> tuple[dict, dict, dict | None]:
+    """The val and test frames a card was scored on, and where they are not its bytes, their
+    hashes (for the card's ``scored_on``, which :func:`_score` writes). Frames made again on
+    another machine (same look, classes and number of frames, other bytes: frames are the
+    same bytes on one machine, not on every one) are read with a warning; other frames are
+    refused."""
     manifests = {s: json.loads((data / s / "manifest.json").read_text())
                  for s in ("val", "test")}  # fmt: skip
     differ = [s for s in manifests if manifests[s]["data_hash"] != card["config"]["data"][s]]
-    card.pop("scored_on", None)
+    scored_on = None
     if differ:
         same_protocol = (
             all(
@@ -375,10 +398,10 @@ def _frames(card: dict, data: Path) -> tuple[dict, dict]:
         print(f"warning: {data}: the {' and '.join(differ)} frames have the card's look, "
               "classes and number but other bytes (made on another machine?): scored on "
               "them, their hashes kept as the card's scored_on", file=sys.stderr)  # fmt: skip
-        card["scored_on"] = {s: manifests[s]["data_hash"] for s in manifests}
+        scored_on = {s: manifests[s]["data_hash"] for s in manifests}
     cfg = card["config"]
     val = load_split(data / "val", cfg["limit"].get("val", cfg["eval_frames"]))
-    return val, load_split(data / "test", cfg["limit"].get("test"))
+    return val, load_split(data / "test", cfg["limit"].get("test")), scored_on
 
 
 def _keep_scores(card: dict) -> dict:
@@ -388,10 +411,13 @@ def _keep_scores(card: dict) -> dict:
     return card
 
 
-def _score(folder: Path, card: dict, val: dict, test: dict) -> None:
+def _score(folder: Path, card: dict, val: dict, test: dict, scored_on: dict | None) -> None:
     """The card's ``val``, ``test`` and ``agent_threshold`` of what agents run: the int8 graph
     when the card names one (the fp16 weights' own under ``int8.fp16_torch``), else the fp16
-    weights."""
+    weights; ``scored_on``: the frames' hashes where they are not those it was trained on."""
+    card.pop("scored_on", None)
+    if scored_on:
+        card["scored_on"] = scored_on
     model = checkpoints.load_segmenter(folder)[0]
     if card.get("int8"):
         card["int8"]["fp16_torch"] = {"val": evaluate(model, val), "test": evaluate(model, test)}
@@ -414,8 +440,9 @@ def quantize(folder: str | Path, data: str | Path, val: dict | None = None,
             raise FileNotFoundError(f"{folder / 'card.json'} not found: expected a segmenter "
                                     "trained by `maniskill-tidy train-segmenter`")  # fmt: skip
         card = _keep_scores(json.loads((folder / "card.json").read_text()))
+    scored_on = None
     if val is None or test is None:
-        val, test = _frames(card, data)
+        val, test, scored_on = _frames(card, data)
     model = checkpoints.load_segmenter(folder)[0]
     calibration = load_split(data / "val", INT8_CALIBRATION)
     graph = int8_graph(model, calibration["rgb"], calibration["depth_mm"] / np.float32(1000.0))
@@ -426,7 +453,7 @@ def quantize(folder: str | Path, data: str | Path, val: dict | None = None,
         f"{onnxruntime.__version__} static QDQ, per-channel int8 weights, uint8 activations, "
         "MinMax; the first convolution and the label head in fp32",
     }
-    _score(folder, card, val, test)
+    _score(folder, card, val, test, scored_on)
     write_atomic(folder / "card.json", json.dumps(card, indent=1).encode())
     return card
 
@@ -438,8 +465,8 @@ def rescore(folder: str | Path, data: str | Path) -> dict:
     after training (how agents make instances); its learning curve stays as measured then."""
     folder, data = Path(folder), Path(data)
     card = _keep_scores(json.loads((folder / "card.json").read_text()))
-    val, test = _frames(card, data)
-    _score(folder, card, val, test)
+    val, test, scored_on = _frames(card, data)
+    _score(folder, card, val, test, scored_on)
     write_atomic(folder / "card.json", json.dumps(card, indent=1).encode())
     return card
 

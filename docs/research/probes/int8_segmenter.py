@@ -36,7 +36,7 @@ def main() -> None:
     args = ap.parse_args()
     folder, data = Path(args.weights), Path(args.data)
     card = json.loads((folder / "card.json").read_text())
-    val, test = trainer._frames(card, data)
+    val, test, _ = trainer._frames(card, data)
     model = checkpoints.load_segmenter(folder)[0]
     calibration = trainer.load_split(data / "val", trainer.INT8_CALIBRATION)
     depth = calibration["depth_mm"] / np.float32(1000.0)
