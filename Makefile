@@ -124,13 +124,13 @@ segmenter-data: setup
 # The segmenter per look on those frames (resumable per epoch) and the int8 graph agents run:
 # agents/segmenter-v2 (24, 32 channels first): 16 epochs from scratch (about 55 min alone),
 # then twice 16 more from the last stage's weights at half the peak rate (about 35 min each;
-# its loss still fell at each stage's end); -v1 (the former 16, 24, 16 epochs).
+# its loss still fell at each stage's end); -v1 (the same widths, 16 epochs, about 33 min).
 SEG_V2 = $(PY) -m maniskill_tidy.cli train-segmenter --data $(SEGMENTER_DATA)/HeteroTidy-v2
 train-segmenter: segmenter-data
 	$(SEG_V2) --out agents/experiments/segmenter-v2-w24
 	$(SEG_V2) --out agents/experiments/segmenter-v2-more --init agents/experiments/segmenter-v2-w24 --lr 1e-3
 	$(SEG_V2) --out agents/segmenter-v2 --init agents/experiments/segmenter-v2-more --lr 1e-3
-	$(PY) -m maniskill_tidy.cli train-segmenter --data $(SEGMENTER_DATA)/HeteroTidy-v1 --out agents/segmenter-v1 --widths 16,24,32,48,64
+	$(PY) -m maniskill_tidy.cli train-segmenter --data $(SEGMENTER_DATA)/HeteroTidy-v1 --out agents/segmenter-v1
 
 # Each look's segmenter on each look's test frames: eval/segmenter_cross_look.{json,md}.
 segmenter-cross-look: setup
