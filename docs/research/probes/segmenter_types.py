@@ -1,0 +1,58 @@
+"""Which pickupable types a segmenter finds, type by type: per type, the renderer's objects of
+20 px or more on the frames, their median size, the share of their pixels labelled their own
+type, the share labelled any pickupable type, and what the rest of their pixels are most often
+called. Read beside `pixels-losses`' table by type: a type whose pixels go to a structure or
+furniture class is never detected; one whose pixels go to another object type is the wrong type.
+
+    .venv/bin/python docs/research/probes/segmenter_types.py agents/segmenter-v2 \\
+        --data data/segmenter/HeteroTidy-v2/test --frames 1200
+"""
+
+from __future__ import annotations
+
+from collections import Counter, defaultdict
+
+import numpy as np
+import segmenter_probe
+
+from maniskill_tidy.envs.actions import MIN_PIXELS
+from maniskill_tidy.models.segmenter import predict, upsample
+from maniskill_tidy.perception.seg_classes import seg_classes
+
+
+def main() -> None:
+    args = segmenter_probe.arguments(__doc__)
+    c = seg_classes()
+    pickupable = np.array([c.is_pickupable(i) and i > 0 for i in range(256)])
+    frames = segmenter_probe.frames(args)
+    model = segmenter_probe.segmenter(args)[0]
+    depth = frames["depth_mm"].astype(np.float32) / 1000
+    labels = upsample(*predict(model, frames["rgb"], depth), depth.shape[1:3])[0]
+    sizes, own, anyobj = defaultdict(list), defaultdict(list), defaultdict(list)
+    elsewhere: dict[int, Counter] = defaultdict(Counter)  # type -> labels of its other pixels
+    for k in range(len(labels)):
+        inst, cls = frames["instance"][k], frames["cls"][k]
+        for i in np.unique(inst[inst > 0]):
+            m = inst == i
+            t = int(cls[m][0])
+            if not pickupable[t] or m.sum() < MIN_PIXELS:
+                continue
+            got = labels[k][m]
+            sizes[t].append(int(m.sum()))
+            own[t].append(float((got == t).mean()))
+            anyobj[t].append(float(pickupable[got].mean()))
+            elsewhere[t].update(got[got != t].tolist())
+    print(f"{len(labels)} frames of {args.data}; objects of 20 px or more, by type "
+          "(fewest of their pixels labelled their type first)")  # fmt: skip
+    print("| type | objects | median px | own type | any object | most of the rest |")
+    print("|---|---:|---:|---:|---:|---|")
+    for t in sorted(sizes, key=lambda t: np.mean(own[t])):
+        rest = elsewhere[t].most_common(2)
+        total = sum(elsewhere[t].values()) or 1
+        named = ", ".join(f"{c.names[label]} {n / total:.2f}" for label, n in rest)
+        print(f"| {c.names[t]} | {len(sizes[t])} | {np.median(sizes[t]):.0f} | "
+              f"{np.mean(own[t]):.2f} | {np.mean(anyobj[t]):.2f} | {named} |")  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()
