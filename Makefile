@@ -30,7 +30,7 @@ demo: setup
 	$(PY) -m maniskill_tidy.cli show-looks --dataset $(DEMO_DIR)/dataset --split test --episode 0 --out $(DEMO_DIR)/looks.png
 	$(PY) -m maniskill_tidy.cli run-episode --env HeteroTidy-v2 --dataset $(DEMO_DIR)/dataset --split test --setting I --episode 0 --steps 30 --out $(DEMO_DIR)/episode
 	$(PY) -m maniskill_tidy.cli show-map --env HeteroTidy-v2 --dataset $(DEMO_DIR)/dataset --split test --episode 0 --agent agent_2 --out $(DEMO_DIR)/map.png
-	$(PY) -m maniskill_tidy.cli eval --policy expert --setting I --split test --episodes 5 --dataset $(DEMO_DIR)/dataset --record all --out $(DEMO_DIR)
+	$(PY) -m maniskill_tidy.cli eval --env HeteroTidy-v1 --policy expert --setting I --split test --episodes 5 --dataset $(DEMO_DIR)/dataset --record all --out $(DEMO_DIR)
 	$(PY) -m maniskill_tidy.cli eval --env HeteroTidy-v2 --policy expert --setting I --split test --episodes 5 --dataset $(DEMO_DIR)/dataset --out $(DEMO_DIR)
 	$(PY) -m maniskill_tidy.cli eval --policy heuristic-broadcast --setting I --split test --episodes 2 --dataset $(DEMO_DIR)/dataset --record all --out $(DEMO_DIR)
 	$(PY) -m maniskill_tidy.cli eval --policy hangrcom --setting I --split test --episodes 2 --dataset $(DEMO_DIR)/dataset --record all --out $(DEMO_DIR)
@@ -66,14 +66,16 @@ DATA120 ?= data/tidy120
 LEARNED ?= hangrcom memory
 LEADERBOARD_SETTINGS ?= I II
 EVAL = $(PY) -m maniskill_tidy.cli eval --split test --dataset $(DATA120) --workers 2
+# the leaderboard's first rows were measured in v1 (v2 became the default look after them)
+EVAL_V1 = $(EVAL) --env HeteroTidy-v1
 leaderboard: setup
 	test -f $(DATA120)/manifest.json || $(PY) -m maniskill_tidy.cli generate --houses 120 --seed 0 --workers 2 --out $(DATA120)
 	for s in $(LEADERBOARD_SETTINGS); do \
-	  $(EVAL) --policy expert --setting $$s && $(EVAL) --policy random --setting $$s || exit 1; done
-	$(EVAL) --policy sa --setting I
+	  $(EVAL_V1) --policy expert --setting $$s && $(EVAL_V1) --policy random --setting $$s || exit 1; done
+	$(EVAL_V1) --policy sa --setting I
 	for s in $(LEADERBOARD_SETTINGS); do \
 	  for p in heuristic-none heuristic-detection heuristic-broadcast heuristic-central $(LEARNED); do \
-	    $(EVAL) --policy $$p --setting $$s || exit 1; done; done
+	    $(EVAL_V1) --policy $$p --setting $$s || exit 1; done; done
 	$(PY) -m maniskill_tidy.cli leaderboard
 
 # The v2 rows (issue 46): the expert and two heuristic teams on HeteroTidy-v2, the same 200 test
@@ -147,7 +149,7 @@ segmenter-cross-look: setup
 TRAIN_SETTINGS ?= I II
 train: setup
 	test -f $(DATA120)/manifest.json || $(PY) -m maniskill_tidy.cli generate --houses 120 --seed 0 --workers 2 --out $(DATA120)
-	$(PY) -m maniskill_tidy.cli train perception --dataset $(DATA120) --out agents/perception
+	$(PY) -m maniskill_tidy.cli train perception --env HeteroTidy-v1 --dataset $(DATA120) --out agents/perception --work data/perception
 	$(PY) -m maniskill_tidy.cli perception-report --agents agents/perception --dataset $(DATA120)
 	for s in $(TRAIN_SETTINGS); do $(PY) -m maniskill_tidy.cli train agents/hangrcom.yaml --setting $$s || exit 1; done
 

@@ -11,9 +11,17 @@ from __future__ import annotations
 from importlib.metadata import PackageNotFoundError, version
 from typing import Any
 
-from maniskill_tidy.envs.registration import ENV_ID, ENV_V2, VERSIONS, register_gym
+from maniskill_tidy.envs.registration import DEFAULT_ENV, ENV_ID, ENV_V2, VERSIONS, register_gym
 
-__all__ = ["ENV_ID", "ENV_V2", "VERSIONS", "__version__", "parallel_env", "register_gym"]
+__all__ = [
+    "DEFAULT_ENV",
+    "ENV_ID",
+    "ENV_V2",
+    "VERSIONS",
+    "__version__",
+    "parallel_env",
+    "register_gym",
+]
 
 try:
     __version__ = version("maniskill-tidy")
@@ -22,8 +30,8 @@ except PackageNotFoundError:  # a source tree on sys.path, not installed
 
 
 def parallel_env(**kwargs: Any):
-    """A PettingZoo ``ParallelEnv`` of the env (its keyword arguments; ``env_id="HeteroTidy-v2"``
-    for the realistic look, where the PettingZoo module takes it)."""
+    """A PettingZoo ``ParallelEnv`` of the env in the default look, v2 (its keyword arguments;
+    ``env_id="HeteroTidy-v1"`` for the flat one, where the PettingZoo module takes it)."""
     from maniskill_tidy.envs.pettingzoo_env import parallel_env as make
 
     return make(**kwargs)

@@ -64,12 +64,13 @@ for env_id in ("HeteroTidy-v1", "HeteroTidy-v2"):
 PY
 venv/bin/maniskill-tidy eval --policy expert --setting I --episodes 1 --out run
 # an installed package has no checkout to name: the run records the package's version
-grep -q '"maniskill-tidy 0.1.0"' run/eval/results/setting_I/expert/run.json
+# (in the default look, v2: its meshes and textures come with the wheel)
+grep -q '"maniskill-tidy 0.1.0"' run/eval/results/setting_I/expert-v2/run.json
 # a learned team from the weights the wheel ships (no agents/ here)
 [ ! -e agents ] && venv/bin/maniskill-tidy eval --policy memory --setting I --episodes 1 --out run
-grep -q '"episodes": 1' run/eval/results/setting_I/memory/summary.json
+grep -q '"episodes": 1' run/eval/results/setting_I/memory-v2/summary.json
 # a team written in a folder of its own (docs/teams.md) plays by its import path, two workers
 (cd myteam && ../venv/bin/maniskill-tidy eval --policy wanderer:WandererTeam --setting I \
   --episodes 2 --workers 2 --out run >/dev/null)
-grep -q '"episodes": 2' myteam/run/eval/results/setting_I/wanderer/summary.json
+grep -q '"episodes": 2' myteam/run/eval/results/setting_I/wanderer-v2/summary.json
 echo "[wheel-check] ok: the wheel's env, one expert and one memory episode and a user's own team run outside the source tree"

@@ -90,20 +90,21 @@ def test_gymnasium_env_checker(env):
 def test_pettingzoo_parallel_api():
     from pettingzoo.test import parallel_api_test
 
-    p = maniskill_tidy.parallel_env(setting="II", split="test", obs_mode="rgb")
+    p = maniskill_tidy.parallel_env(setting="II", split="test", obs_mode="rgb")  # default: v2
     try:
+        assert p.env.visuals == "realistic" and p.metadata["name"] == "heterotidy_v2"
         assert p.possible_agents == ["agent_0", "agent_1", "agent_2", "agent_3"]
         assert p.action_space("agent_0").n == 8 and p.action_space("agent_3").n == 11
         parallel_api_test(p, num_cycles=20)
     finally:
         p.close()
-    v2 = maniskill_tidy.parallel_env(env_id="HeteroTidy-v2", split="test", obs_mode="rgb")
+    v1 = maniskill_tidy.parallel_env(env_id="HeteroTidy-v1", split="test", obs_mode="rgb")
     try:
-        assert v2.env.visuals == "realistic" and v2.metadata["name"] == "heterotidy_v2"
-        obs, _ = v2.reset(seed=0)
+        assert v1.env.visuals == "flat" and v1.metadata["name"] == "heterotidy_v1"
+        obs, _ = v1.reset(seed=0)
         assert obs["agent_0"]["rgb"].shape == (224, 224, 3)
     finally:
-        v2.close()
+        v1.close()
     with pytest.raises(ValueError, match="expected one of"):
         maniskill_tidy.parallel_env(env_id="HeteroTidy-v9")
 

@@ -156,7 +156,9 @@ def test_read_records_cuts_a_torn_last_line(tmp_path):
 
 
 def _eval(out, extra=()):
-    cmd = [sys.executable, "-m", "maniskill_tidy.cli", "eval", "--policy", "expert"]
+    # v1, the look the RunConfig runs below default to (old run files name none)
+    cmd = [sys.executable, "-m", "maniskill_tidy.cli", "eval", "--policy", "expert", "--env",
+           "HeteroTidy-v1"]  # fmt: skip
     cmd += ["--episodes", "3", "--split", "test", "--out", str(out), *extra]
     return cmd
 
@@ -564,8 +566,11 @@ def test_pixels_rows_get_their_own_table_paired_with_their_team_on_ground_truth(
     outcomes = {"memory-v2": [True] * 16 + [False] * 4,
                 "memory-v2-pixels": [True] * 8 + [False] * 12}  # fmt: skip
     for policy, success in outcomes.items():
-        s = {**_summary(policy, success, 0), "env": "HeteroTidy-v2",
-             "segmentation": "learned:" + "ab" * 32 if "pixels" in policy else "ground-truth"}
+        s = {
+            **_summary(policy, success, 0),
+            "env": "HeteroTidy-v2",
+            "segmentation": "learned:" + "ab" * 32 if "pixels" in policy else "ground-truth",
+        }
         folder = tmp_path / "results" / "setting_I" / policy
         folder.mkdir(parents=True)
         (folder / "summary.json").write_text(json.dumps(s))

@@ -275,6 +275,34 @@ def test_eval_on_v2_is_its_own_row_and_old_v1_runs_still_resume(tmp_path):
     ]
 
 
+def test_commands_default_to_v2_and_a_team_reading_v1_pixels_through_weights_to_v1(capsys):
+    import argparse
+
+    import maniskill_tidy
+    from maniskill_tidy.cli.evaluation import _look
+    from maniskill_tidy.cli.options import env_option
+    from maniskill_tidy.policies import team_class
+    from maniskill_tidy.policies.agent_config import perception_look
+
+    p = argparse.ArgumentParser()
+    env_option(p)
+    assert p.parse_args([]).env == maniskill_tidy.DEFAULT_ENV == "HeteroTidy-v2"
+    # scripted teams (and the memory team, which reads only segmentation) play any look: v2
+    assert _look("heuristic-none", None) == "HeteroTidy-v2"
+    assert _look("memory", None) == "HeteroTidy-v2" and capsys.readouterr().out == ""
+    # the paper's model and QMIX read RGB through agents/perception, trained on v1's views
+    assert perception_look("agents/perception/knowledge") == "HeteroTidy-v1"
+    assert perception_look("agents/perception-v2/knowledge") == "HeteroTidy-v2"
+    assert team_class("agents/wo_comm.yaml").look == "HeteroTidy-v1"
+    assert _look("hangrcom", None) == "HeteroTidy-v1"
+    assert "trained on HeteroTidy-v1's views; playing HeteroTidy-v1" in capsys.readouterr().out
+    assert _look("agents/qmix.yaml", None) == "HeteroTidy-v1"
+    capsys.readouterr()
+    assert _look("hangrcom", "HeteroTidy-v2") == "HeteroTidy-v2"  # told: played, and said so
+    assert "measures the look change" in capsys.readouterr().out
+    assert _look("expert", "HeteroTidy-v1") == "HeteroTidy-v1" and capsys.readouterr().out == ""
+
+
 def test_what_rests_on_a_model_stays_above_it():
     """Over the middle of each surface of a static piece, the shipped model lies under the
     height the spec puts objects at: a thin object on a cushion or in a tub stays in view."""

@@ -15,13 +15,16 @@ from maniskill_tidy.sim.house_scene import Instance
 def _world():
     env = NS(
         misplaced=["Apple_0", "Mug_0", "Cup_0", "Book_0"],
-        manipulation=NS(types={"Apple_0": "Apple", "Mug_0": "Mug", "Cup_0": "Cup",
-                               "Book_0": "Book"}),  # fmt: skip
-        instances={5: Instance(5, "object", "Apple", "Apple_0"),
-                   6: Instance(6, "object", "Mug", "Mug_0"),
-                   7: Instance(7, "object", "Cup", "Cup_0"),
-                   8: Instance(8, "object", "Book", "Book_0"),
-                   9: Instance(9, "object", "Plate", "Plate_0")},  # fmt: skip
+        manipulation=NS(
+            types={"Apple_0": "Apple", "Mug_0": "Mug", "Cup_0": "Cup", "Book_0": "Book"}
+        ),  # fmt: skip
+        instances={
+            5: Instance(5, "object", "Apple", "Apple_0"),
+            6: Instance(6, "object", "Mug", "Mug_0"),
+            7: Instance(7, "object", "Cup", "Cup_0"),
+            8: Instance(8, "object", "Book", "Book_0"),
+            9: Instance(9, "object", "Plate", "Plate_0"),
+        },  # fmt: skip
         agents=[NS(name="agent_0", held=None)],
         picked={"Book_0"},
         is_reasonable=lambda oid: oid == "Book_0",
@@ -124,8 +127,8 @@ def test_object_fates_plays_a_camera_team_and_refuses_the_expert(tmp_path):
 def test_unsolved_objects_replays_a_runs_failed_episodes(tmp_path):
     from tests.test_cli_errors import cli, one_line_error
 
-    p = cli("eval", "--policy", "random", "--setting", "I", "--episodes", "1", "--out",
-            str(tmp_path))  # fmt: skip
+    p = cli("eval", "--policy", "random", "--setting", "I", "--episodes", "1", "--env",
+            "HeteroTidy-v1", "--out", str(tmp_path))  # fmt: skip
     assert p.returncode == 0, p.stderr[-2000:]
     run = tmp_path / "eval/results/setting_I/random"
     p = cli("unsolved-objects", str(run))

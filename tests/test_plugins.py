@@ -22,6 +22,7 @@ def folder(tmp_path):
 
 
 def _summary(out: Path, name: str) -> dict:
+    """A run's summary; a team without learned weights plays the default look (row NAME-v2)."""
     return json.loads((out / "eval/results/setting_I" / name / "summary.json").read_text())
 
 
@@ -29,7 +30,7 @@ def test_a_team_by_import_path_plays_with_two_workers(folder):
     p = cli("eval", "--policy", "wanderer:WandererTeam", "--setting", "I", "--episodes", "2",
             "--workers", "2", "--out", "out", cwd=folder)  # fmt: skip
     assert p.returncode == 0, p.stderr[-2000:]
-    s = _summary(folder / "out", "wanderer")
+    s = _summary(folder / "out", "wanderer-v2")
     assert s["episodes"] == 2 and s["workers"] == 2 and s["obs_mode"] == "none"
 
 
@@ -38,7 +39,7 @@ def test_a_team_by_import_path_plays_on_ray_actors(folder):
     p = cli("eval", "--policy", "wanderer:WandererTeam", "--setting", "I", "--episodes", "2",
             "--workers", "2", "--ray", "--out", "out", cwd=folder)  # fmt: skip
     assert p.returncode == 0, p.stderr[-2000:]
-    s = _summary(folder / "out", "wanderer")
+    s = _summary(folder / "out", "wanderer-v2")
     assert s["episodes"] == 2 and s["ray"]
 
 
@@ -66,7 +67,7 @@ def test_an_installed_packages_team_is_found_by_its_entry_point(folder):
     p = cli("eval", "--policy", "wander", "--setting", "I", "--episodes", "1", "--out", "out",
             cwd=folder, env=env)  # fmt: skip
     assert p.returncode == 0, p.stderr[-2000:]
-    assert _summary(folder / "out", "wanderer")["episodes"] == 1
+    assert _summary(folder / "out", "wanderer-v2")["episodes"] == 1
 
 
 @pytest.mark.parametrize(
@@ -87,5 +88,5 @@ def test_the_docs_talker_sends_and_is_counted(folder):
     p = cli("eval", "--policy", "wanderer:TalkerTeam", "--setting", "I", "--episodes", "1",
             "--out", "out", cwd=folder)  # fmt: skip
     assert p.returncode == 0, p.stderr[-2000:]
-    m = _summary(folder / "out", "talker")["metrics"]["All"]
+    m = _summary(folder / "out", "talker-v2")["metrics"]["All"]
     assert m["ACm"] == pytest.approx(6.0)  # three floats to each of two teammates, every step

@@ -79,8 +79,8 @@ def test_eval_joins_a_cluster_started_with_ray_start(tmp_path, reference):
             except OSError:
                 assert head.poll() is None and time.monotonic() < deadline, "ray start failed"
                 time.sleep(0.5)
-        p = cli("eval", "--policy", "expert", "--episodes", "4", "--workers", "2",
-                "--ray", address, "--out", str(tmp_path / "cluster"))  # fmt: skip
+        p = cli("eval", "--policy", "expert", "--episodes", "4", "--workers", "2", "--env",
+                "HeteroTidy-v1", "--ray", address, "--out", str(tmp_path / "cluster"))  # fmt: skip
         assert p.returncode == 0, p.stderr[-2000:]
     finally:  # only this cluster: `ray stop` would stop every Ray on the machine
         os.killpg(head.pid, signal.SIGTERM)

@@ -9,6 +9,22 @@ from pathlib import Path
 from maniskill_tidy.cli.options import env_option, ray_option
 
 
+def _look(policy: str, env: str | None) -> str:
+    """The look ``eval`` plays: ``--env``, else the team's (``Team.look``), else the default;
+    a note where the team's learned weights were trained on the other look's views."""
+    from maniskill_tidy.envs.registration import DEFAULT_ENV
+    from maniskill_tidy.policies import team_class
+
+    look = getattr(team_class(policy), "look", None)  # a privileged team reads no pixels
+    if env is None and look not in (None, DEFAULT_ENV):
+        print(f"note: {policy} reads pixels through weights trained on {look}'s views; "
+              f"playing {look} (--env {DEFAULT_ENV} to play it there anyway)")  # fmt: skip
+    elif env is not None and look not in (None, env):
+        print(f"note: {policy}'s weights were trained on {look}'s views: in {env} the run "
+              "measures the look change as well as the team")  # fmt: skip
+    return env or look or DEFAULT_ENV
+
+
 def _eval(args: argparse.Namespace) -> int:
     from maniskill_tidy.common.parallel import workers_option
     from maniskill_tidy.eval.runner import RunConfig, episode_spec, evaluate, run_dir
@@ -21,7 +37,7 @@ def _eval(args: argparse.Namespace) -> int:
         episodes=episode_spec(args.episodes),
         seed=args.seed,
         task_type=args.task_type,
-        env=args.env,
+        env=_look(args.policy, args.env),
         segmentation=args.segmentation,
     )
     summary = evaluate(
@@ -193,7 +209,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
         "an installed package's team (entry point maniskill_tidy.teams)",
     )
     ev.add_argument("--setting", default="I", help="I, II or a preset JSON file")
-    env_option(ev)
+    env_option(ev, by_team=True)
     ev.add_argument("--split", default="test", choices=("train", "val", "test"))
     ev.add_argument("--task-type", default="all", choices=("all", "single", "cross"))
     ev.add_argument(

@@ -5,15 +5,19 @@ from __future__ import annotations
 import argparse
 
 
-def env_option(p: argparse.ArgumentParser) -> None:
-    from maniskill_tidy.envs.registration import VERSIONS
+def env_option(p: argparse.ArgumentParser, by_team: bool = False) -> None:
+    """``--env``, the look: v2 unless told; ``by_team``: None, for ``eval`` to play a team in
+    the look its learned weights read pixels in (``Team.look``), else v2."""
+    from maniskill_tidy.envs.registration import DEFAULT_ENV, VERSIONS
 
     p.add_argument(
         "--env",
-        default="HeteroTidy-v1",
+        default=None if by_team else DEFAULT_ENV,
         choices=tuple(VERSIONS),
-        help="the env version, i.e. the look: v1 flat-coloured primitives (the committed "
-        "results), v2 realistic meshes and materials; the task is the same",
+        help=f"the env version, i.e. the look (default {DEFAULT_ENV}"
+        + (", or v1 for a team whose learned weights were trained on v1's views" if by_team else "")
+        + "): v2 realistic meshes and materials, v1 flat-coloured primitives (where the "
+        "leaderboard's first rows and the learned teams' weights were made); the task is the same",
     )
 
 

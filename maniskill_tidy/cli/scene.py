@@ -141,7 +141,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     sm.add_argument("--episode", type=int, default=0)
     sm.add_argument("--out", required=True, help="a .png")
     env_option(sm)
-    sm.set_defaults(func=_show_masks, env="HeteroTidy-v2")
+    sm.set_defaults(func=_show_masks)
 
     e = sub.add_parser(
         "run-episode", help="play one episode with an exploring policy; save camera and house PNGs"

@@ -7,10 +7,12 @@ from pathlib import Path
 
 from maniskill_tidy.cli.options import env_option, ray_option
 
-TRAIN_DEFAULTS = {"dataset": "data/tidy120", "out": "agents/perception",
-                  "work": "data/perception", "seed": 0, "workers": 2,
-                  "env": "HeteroTidy-v1", "visual_widths": None,
+TRAIN_DEFAULTS = {"dataset": "data/tidy120", "out": None, "work": None, "seed": 0,
+                  "workers": 2, "env": None, "visual_widths": None,
                   "scene_widths": None}  # fmt: skip
+# `train perception`'s folders by look: v1's are the shipped perception the learned teams read
+PERCEPTION_FOLDERS = {"HeteroTidy-v1": ("agents/perception", "data/perception"),
+                      "HeteroTidy-v2": ("agents/perception-v2", "data/perception-v2")}  # fmt: skip
 
 
 def widths(option: str, text: str | None, count: int = 4) -> dict:
@@ -160,6 +162,12 @@ def _train(args: argparse.Namespace) -> int:
     for key, default in TRAIN_DEFAULTS.items():
         if getattr(args, key) is None:
             setattr(args, key, default)
+    if args.what == "perception":
+        from maniskill_tidy.envs.registration import DEFAULT_ENV
+
+        args.env = args.env or DEFAULT_ENV
+        out, work = PERCEPTION_FOLDERS[args.env]
+        args.out, args.work = args.out or out, args.work or work
     if trainer_of(Path(args.what)) == "memory":
         from maniskill_tidy.training.memory_trainer import train_memory
 
@@ -269,7 +277,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     sd.add_argument("--houses", type=int, help="only the first N houses of each split")
     sd.add_argument("--workers", type=int, default=2)
     env_option(sd)
-    sd.set_defaults(func=_segmenter_data, env="HeteroTidy-v2")
+    sd.set_defaults(func=_segmenter_data)
 
     ts = sub.add_parser(
         "train-segmenter", help="the pixels track's segmenter, on segmenter-data's frames (CPU)"
@@ -351,15 +359,22 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     )
     tr.add_argument("--setting", default="I", help="with an agent config: I or II")
     tr.add_argument("--dataset", help="perception: dataset directory (data/tidy120)")
-    tr.add_argument("--out", help="perception: agent folder to write (agents/perception)")
     tr.add_argument(
-        "--work", help="perception: views and resumable checkpoints, not shipped (data/perception)"
+        "--out",
+        help="perception: agent folder to write (agents/perception-v2; in v1 the "
+        "shipped agents/perception)",
+    )
+    tr.add_argument(
+        "--work",
+        help="perception: views and resumable checkpoints, not shipped "
+        "(data/perception-v2; in v1 data/perception)",
     )
     tr.add_argument("--seed", type=int, help="perception: seed (0)")
     tr.add_argument(
         "--env",
         choices=("HeteroTidy-v1", "HeteroTidy-v2"),
-        help="perception: the look the views are rendered in (HeteroTidy-v1)",
+        help="perception: the look the views are rendered in (HeteroTidy-v2; the learned "
+        "teams read agents/perception, trained in HeteroTidy-v1)",
     )
     tr.add_argument("--workers", type=int, help="perception: processes rendering the views (2)")
     tr.add_argument(

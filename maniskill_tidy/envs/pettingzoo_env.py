@@ -1,11 +1,11 @@
 """A PettingZoo view of HeteroTidy-v1 and -v2: one agent per robot, made as PettingZoo's own
 envs are.
 
-``parallel_env(setting="I")`` gives a ``ParallelEnv`` of v1,
-``parallel_env(env_id="HeteroTidy-v2")`` one of v2; ``env(...)`` its AEC conversion. The team
-shares one reward (the change in misplaced objects at reasonable places). An agent that chose
-``Stop`` is terminated and leaves ``agents``; when the step limit truncates the episode every
-remaining agent is truncated.
+``parallel_env(setting="I")`` gives a ``ParallelEnv`` of the default look (v2,
+``DEFAULT_ENV``), ``parallel_env(env_id="HeteroTidy-v1")`` one of v1; ``env(...)`` its AEC
+conversion. The team shares one reward (the change in misplaced objects at reasonable places).
+An agent that chose ``Stop`` is terminated and leaves ``agents``; when the step limit truncates
+the episode every remaining agent is truncated.
 """
 
 from __future__ import annotations
@@ -17,13 +17,15 @@ from pettingzoo import ParallelEnv
 from pettingzoo.utils.conversions import parallel_to_aec
 
 from maniskill_tidy.envs.hetero_tidy import HeteroTidyEnv
-from maniskill_tidy.envs.registration import ENV_ID, VERSIONS
+from maniskill_tidy.envs.registration import DEFAULT_ENV, VERSIONS
 
 
 class HeteroTidyParallelEnv(ParallelEnv):
-    metadata = {"name": "hetero_tidy_v1", "render_modes": ["rgb_array"], "is_parallelizable": True}
+    metadata = {"name": "hetero_tidy_v2", "render_modes": ["rgb_array"], "is_parallelizable": True}
 
-    def __init__(self, render_mode: str | None = None, env_id: str = ENV_ID, **kwargs: Any) -> None:
+    def __init__(
+        self, render_mode: str | None = None, env_id: str = DEFAULT_ENV, **kwargs: Any
+    ) -> None:
         if env_id not in VERSIONS:
             raise ValueError(f"env_id {env_id!r}: expected one of {sorted(VERSIONS)}")
         kwargs.setdefault("visuals", VERSIONS[env_id])

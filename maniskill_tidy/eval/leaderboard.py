@@ -507,10 +507,14 @@ def write_leaderboard(root: Path = Path("eval")) -> Path:
         "",
         "Written by `maniskill-tidy leaderboard` from the run summaries under "
         "`eval/results/`; each row comes from `maniskill-tidy eval --policy NAME --setting S "
-        "--split test --dataset DIR` (see the details table). Rows marked *(paper)* are the "
+        "--split test --dataset DIR --env HeteroTidy-v1` (see the details table): a row "
+        "without a look named was measured in HeteroTidy-v1, the flat look where the first "
+        "rows were made; NAME-v2 rows in HeteroTidy-v2, the default look since its rows "
+        "exist. Rows marked *(paper)* are the "
         "figures the paper reports (AI2-THOR/ProcTHOR, learned models): reference points, not "
         "runs of this code. *(privileged)* rows read the simulator state. Non-privileged teams "
-        "here use ground-truth instance segmentation in place of a trained detector. Our "
+        "outside the From pixels tables use ground-truth instance segmentation in place of a "
+        "trained detector. Our "
         "Success cells give the 95 % bootstrap interval over episodes in brackets. The "
         "standard protocol is the first start of every meta-task of the test split "
         "(200 episodes per setting); the paper's full protocol plays all 1000.",

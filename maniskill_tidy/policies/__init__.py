@@ -12,7 +12,12 @@ from importlib.metadata import entry_points
 from pathlib import Path
 
 from maniskill_tidy.common.agent_files import resolve
-from maniskill_tidy.policies.agent_config import QmixConfig, read_config, trainer_of
+from maniskill_tidy.policies.agent_config import (
+    QmixConfig,
+    perception_look,
+    read_config,
+    trainer_of,
+)
 from maniskill_tidy.policies.base import AnyTeam, PrivilegedTeam, Team
 from maniskill_tidy.policies.expert import ExpertTeam
 from maniskill_tidy.policies.heuristic import (
@@ -104,8 +109,15 @@ def team_class(policy: str) -> type[AnyTeam]:
         trainer = trainer_of(resolve(policy))
         if trainer == "qmix":
             cfg = QmixConfig.load(resolve(policy))
-            return type(f"QmixTeam_{cfg.name}", (QmixTeam,), {"name": cfg.name,
-                                                             "folder": Path(cfg.out)})  # fmt: skip
+            return type(
+                f"QmixTeam_{cfg.name}",
+                (QmixTeam,),
+                {
+                    "name": cfg.name,
+                    "folder": Path(cfg.out),
+                    "look": perception_look(cfg.perception),
+                },
+            )
         if trainer == "memory":
             from maniskill_tidy.policies.memory import memory_team_class
 

@@ -7,12 +7,14 @@ evaluation both read configs from here: a team never imports the trainer to find
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 import yaml
 
-from maniskill_tidy.common.agent_files import WHERE
+from maniskill_tidy.common.agent_files import WHERE, resolve
+from maniskill_tidy.envs.registration import ENV_ID
 from maniskill_tidy.knowledge import ROOM_TYPES, load_catalog
 from maniskill_tidy.models.communication import SCHEMES
 from maniskill_tidy.models.decision import DecisionConfig
@@ -371,3 +373,14 @@ def load_config(path: Path) -> AgentConfig | QmixConfig | MemoryConfig:
     if kind == "qmix":
         return QmixConfig.load(path)
     return MemoryConfig.load(path) if kind == "memory" else AgentConfig.load(path)
+
+
+def perception_look(folder: str | Path) -> str:
+    """The look a learned perception's views were rendered in: its card's ``config.env``, or
+    v1 for cards from before looks existed. A team reading RGB through it plays there by
+    default (``Team.look``): weights trained on one look's pixels measure the look change in
+    the other, not the team."""
+    card = Path(resolve(folder)) / "card.json"
+    if not card.is_file():
+        return ENV_ID
+    return json.loads(card.read_text()).get("config", {}).get("env", ENV_ID)

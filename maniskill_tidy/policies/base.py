@@ -194,6 +194,10 @@ class Team(ABC):
     rounds: ClassVar[int] = 1  # communication rounds per step
     team_override: ClassVar[list | None] = None  # plays with its own team (SA: one manipulator)
     perception: ClassVar[str] = ""  # what stands in for the paper's perception, for the results
+    # The look whose pixels its learned weights were trained on (``perception_look``), where
+    # ``eval`` plays it unless ``--env`` says otherwise; None: any look (it reads no RGB
+    # through weights, or reads the renderer's segmentation, the same in both).
+    look: ClassVar[str | None] = None
     # Given the misplaced objects' locations at reset (``PublicInfo.oracle_misplaced``): the
     # paper's SA(Oracle). Such a team reads the task, so its rows are privileged too.
     oracle: ClassVar[bool] = False

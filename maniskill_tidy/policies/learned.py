@@ -25,6 +25,7 @@ import torch
 
 from maniskill_tidy.common.agent_files import resolve
 from maniskill_tidy.envs.actions import REACH, Action, Targeted
+from maniskill_tidy.envs.registration import ENV_ID
 from maniskill_tidy.envs.robots import robot_kind
 from maniskill_tidy.knowledge import ROOM_TYPES, load_catalog
 from maniskill_tidy.models.checkpoints import (
@@ -37,7 +38,7 @@ from maniskill_tidy.models.checkpoints import (
 )
 from maniskill_tidy.models.communication import TASK, scheme
 from maniskill_tidy.models.decision import DecisionConfig, crop_layout, goal_maps, suspects
-from maniskill_tidy.policies.agent_config import AgentConfig
+from maniskill_tidy.policies.agent_config import AgentConfig, perception_look
 from maniskill_tidy.policies.base import (
     EXPLORE,
     OPERATIONS,
@@ -374,6 +375,7 @@ class LearnedTeam(Team):
     threadsafe_agents = True
     agent_processes = True
     perception: ClassVar[str] = describe("agents/perception/knowledge", DecisionConfig())
+    look: ClassVar[str | None] = ENV_ID  # agents/perception's views were v1's (perception_look)
 
     config_file: ClassVar[Path] = DEFAULT_CONFIG
 
@@ -454,6 +456,7 @@ def learned_team_class(config: str | Path) -> type[LearnedTeam]:
     comm = scheme(decision.communication)
     attrs = {"name": cfg.name, "config_file": resolve(config), "communication": comm.name,
              "perception": describe(cfg.perception, decision),
+             "look": perception_look(cfg.perception),
              "central": comm.uploads, "rounds": comm.rounds,
              "team_override": cfg.team, "oracle": cfg.acting().oracle,
              "privileged": cfg.acting().oracle}  # fmt: skip

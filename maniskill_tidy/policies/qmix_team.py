@@ -20,6 +20,7 @@ import torch
 
 from maniskill_tidy.common.agent_files import resolve
 from maniskill_tidy.envs.actions import Action, Targeted
+from maniskill_tidy.envs.registration import ENV_ID
 from maniskill_tidy.models.checkpoints import (
     CheckpointError,
     for_agents,
@@ -100,6 +101,7 @@ class QmixTeam(Team):
         "learned: small CNNs and GCN (agents/perception) over ground-truth segmentation; "
         "QMIX Q-networks on the perception features"
     )
+    look: ClassVar[str | None] = ENV_ID  # agents/perception's views were v1's (perception_look)
     folder: ClassVar[Path] = Path("agents/qmix")
 
     def __init__(self, model: QmixTeamModel | None = None, epsilon: float = 0.0,
