@@ -284,7 +284,7 @@ def test_the_env_and_eval_run_on_it_unchanged(procthor_dataset, tmp_path):
     out, _ = procthor_dataset
     p = cli(
         "eval", "--policy", "expert", "--setting", "I", "--split", "test", "--episodes", "2",
-        "--dataset", str(out), "--out", str(tmp_path),
+        "--dataset", str(out), "--env", "HeteroTidy-v1", "--out", str(tmp_path),
     )  # fmt: skip
     assert p.returncode == 0, p.stderr[-2000:]
     summary = json.loads(next(tmp_path.rglob("summary.json")).read_text())

@@ -25,10 +25,24 @@ def _look(policy: str, env: str | None) -> str:
     return env or look or DEFAULT_ENV
 
 
+def _segmenter_note(segmentation: str, env: str) -> None:
+    """A note where ``--segmentation DIR`` names a segmenter trained on the other look's
+    frames (the cross-look row: its own row, ``NAME-pixels-DIR``)."""
+    import json
+
+    card = Path(segmentation) / "card.json"
+    look = json.loads(card.read_text()).get("look") if card.is_file() else None
+    if look not in (None, env):
+        print(f"note: {segmentation} was trained on {look}'s frames; played in {env}")
+
+
 def _eval(args: argparse.Namespace) -> int:
     from maniskill_tidy.common.parallel import workers_option
     from maniskill_tidy.eval.runner import RunConfig, episode_spec, evaluate, run_dir
 
+    env = _look(args.policy, args.env)
+    if args.segmentation not in ("ground-truth", "learned"):
+        _segmenter_note(args.segmentation, env)
     cfg = RunConfig(
         policy=args.policy,
         setting=args.setting,
@@ -37,7 +51,7 @@ def _eval(args: argparse.Namespace) -> int:
         episodes=episode_spec(args.episodes),
         seed=args.seed,
         task_type=args.task_type,
-        env=_look(args.policy, args.env),
+        env=env,
         segmentation=args.segmentation,
     )
     summary = evaluate(
@@ -143,7 +157,7 @@ def _object_fates(args: argparse.Namespace) -> int:
 
     rows, failures, traces, n = object_fates(args.policy, args.setting, args.split,
                                              args.episodes, args.dataset, args.workers,
-                                             args.trace)  # fmt: skip
+                                             args.trace, _look(args.policy, args.env))  # fmt: skip
     for line in traces:
         print(line)
     if args.out is not None:
@@ -273,6 +287,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     of.add_argument("--setting", default="I", choices=["I", "II"])
     of.add_argument("--split", default="val", choices=["train", "val", "test"])
     of.add_argument("--episodes", type=int, default=40)
+    env_option(of, by_team=True)
     of.add_argument("--dataset", help="default: the shipped dataset")
     of.add_argument("--workers", type=int, default=2)
     of.add_argument("--out", help="one JSON line per object (default: print only)")

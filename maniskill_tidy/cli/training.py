@@ -32,8 +32,14 @@ def widths(option: str, text: str | None, count: int = 4) -> dict:
 
 
 def _demos(args: argparse.Namespace) -> int:
+    from maniskill_tidy.envs.registration import DEFAULT_ENV
+
     if args.features:
+        from maniskill_tidy.policies.agent_config import AgentConfig, perception_look
         from maniskill_tidy.training.decision_data import DemoConfig, build_demo_features
+
+        # features are the learned perception's: rendered in the look it was trained on
+        args.env = args.env or perception_look(AgentConfig.perception)
 
         out = Path(args.out or "data/demos")
         cfg = DemoConfig(args.setting, args.split, args.starts, args.tasks_per_house,
@@ -52,6 +58,7 @@ def _demos(args: argparse.Namespace) -> int:
     from maniskill_tidy.training.demonstrations import write_demonstrations
 
     args.out = args.out or "data/trajectories"
+    args.env = args.env or DEFAULT_ENV
     m = write_demonstrations(
         Path(args.out), args.dataset, args.split, args.setting, tasks=args.tasks, seed=args.seed,
         env_id=args.env,
@@ -262,7 +269,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
         help="with --features: DAgger; this team (a policy or agent config) plays and the "
         "teacher labels the states it reaches",
     )
-    env_option(dm)
+    env_option(dm, by_team=True)
     dm.set_defaults(func=_demos)
 
     sd = sub.add_parser(

@@ -532,9 +532,10 @@ def write_leaderboard(root: Path = Path("eval")) -> Path:
                   table(setting, ours, reference, "rows"), ""]  # fmt: skip
         if full.get(setting):
             parts += ["The paper's full protocol (every start of every meta-task of the test "
-                      "split, `eval --policy NAME --episodes all --out eval/all`; the paper's "
-                      "rows are above):", "", table(setting, full[setting], {}, "rows"),
-                      "", details(full[setting]), ""]  # fmt: skip
+                      "split, `eval --policy NAME --episodes all --env HeteroTidy-v1 --out "
+                      "eval/all`; the paper's rows are above):", "",
+                      table(setting, full[setting], {}, "rows"), "", details(full[setting]),
+                      ""]  # fmt: skip
         if any(p in ABLATIONS for p in ours) or reference.get("ablations", {}).get(setting):
             parts += [f"Ablations (the paper's Table {ablations}):", "",
                       table(setting, ours, reference, "ablations"), ""]  # fmt: skip

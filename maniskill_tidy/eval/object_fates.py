@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from maniskill_tidy.envs.actions import MIN_PIXELS, NO_ROOM
+from maniskill_tidy.envs.registration import ENV_ID
 
 FATES = ("never in view", "in view, never picked", "picked, not placed", "placed")
 REASONS = ("only non-manipulators had it in view", "a manipulator had it in view")
@@ -129,8 +130,9 @@ def _play(job: tuple[int, bool]) -> tuple[list[dict], Counter, list[str]]:
 
 
 def object_fates(policy: str, setting: str, split: str, episodes: int, dataset: str,
-                 workers: int, trace: str | None = None):  # fmt: skip
-    """Play the episodes; returns (rows, failures, traces, number of episodes)."""
+                 workers: int, trace: str | None = None, env: str = ENV_ID):  # fmt: skip
+    """Play the episodes in look ``env``; returns (rows, failures, traces, number of
+    episodes)."""
     from tqdm import tqdm
 
     from maniskill_tidy.common.parallel import run_jobs
@@ -146,7 +148,7 @@ def object_fates(policy: str, setting: str, split: str, episodes: int, dataset: 
     if dataset is not None and not Path(dataset).is_dir():
         raise ValueError(f"--dataset {dataset}: not found; expected a folder made by "
                          "`maniskill-tidy generate`")  # fmt: skip
-    cfg = RunConfig(policy, setting, split, dataset)
+    cfg = RunConfig(policy, setting, split, dataset, env=env)
     starts = EpisodeSet.for_setting(dataset, split, setting).episodes
     chosen = select([e.start for e in starts], episodes)
     if trace is not None:

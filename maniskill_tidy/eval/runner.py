@@ -31,6 +31,7 @@ from maniskill_tidy.common.agent_files import resolve
 from maniskill_tidy.common.files import write_atomic
 from maniskill_tidy.common.parallel import auto_workers, run_jobs
 from maniskill_tidy.common.provenance import code_version
+from maniskill_tidy.envs.registration import ENV_ID
 from maniskill_tidy.eval.episode import play_episode
 from maniskill_tidy.eval.metrics import EpisodeRecord, summarize
 from maniskill_tidy.eval.pixels_losses import PixelsLosses
@@ -51,7 +52,9 @@ class RunConfig:
     episodes: str | int = "standard"  # "standard", "all" or a number (see the top)
     seed: int = 0
     task_type: str = "all"
-    env: str = "HeteroTidy-v1"  # the version, i.e. the look (VERSIONS in maniskill_tidy)
+    # the version, i.e. the look (VERSIONS in maniskill_tidy). v1 here, not the commands'
+    # default look (v2): a run file from before "env" existed ran in v1 (``RunFile``)
+    env: str = ENV_ID
     # the perception track: "ground-truth" segmentation, or "learned" (the pixels track with
     # the look's shipped segmenter, agents/segmenter-v1 or -v2) or a segmenter's folder
     segmentation: str = "ground-truth"
@@ -95,7 +98,7 @@ def run_name(cfg: RunConfig) -> str:
     and so is a pixels run (``memory-v2-pixels``; with another look's segmenter, its folder's
     name after it: ``memory-v2-pixels-segmenter-v1``)."""
     name = team_class(cfg.policy).name
-    name = name if cfg.env == "HeteroTidy-v1" else f"{name}-{cfg.env.rsplit('-', 1)[1]}"
+    name = name if cfg.env == ENV_ID else f"{name}-{cfg.env.rsplit('-', 1)[1]}"
     if cfg.segmentation == "learned":
         return f"{name}-pixels"
     return f"{name}-pixels-{Path(cfg.segmentation).name}" if cfg.pixels else name

@@ -122,10 +122,10 @@ def _load(path: Path, *train_hints: str) -> dict:
         ) from None
 
 
-def read(folder: Path, train_hint: str) -> dict:
-    """The saved payload, after checking the file against its card."""
-    verify(folder, train_hint)
-    return _load(Path(folder) / WEIGHTS, train_hint)
+def read(folder: Path, train_hint: str, *others: str) -> dict:
+    """The saved payload, after checking the file against its card (hints as :func:`verify`'s)."""
+    verify(folder, train_hint, *others)
+    return _load(Path(folder) / WEIGHTS, train_hint, *others)
 
 
 def for_agents(model: torch.nn.Module) -> torch.nn.Module:
@@ -172,7 +172,8 @@ def load_perception(folder: Path) -> PerceptionModel:
     from maniskill_tidy.models.knowledge_graph import KnowledgeGraph
     from maniskill_tidy.models.perception import PerceptionConfig, PerceptionModel
 
-    saved = read(folder, "maniskill-tidy train perception")
+    # the shipped perception is v1's; the command's default look is v2
+    saved = read(folder, "maniskill-tidy train perception --env HeteroTidy-v1", "make train")
     state = saved["state"]
     graph = KnowledgeGraph(
         tuple(saved["nodes"]),

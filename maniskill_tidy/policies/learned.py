@@ -25,7 +25,6 @@ import torch
 
 from maniskill_tidy.common.agent_files import resolve
 from maniskill_tidy.envs.actions import REACH, Action, Targeted
-from maniskill_tidy.envs.registration import ENV_ID
 from maniskill_tidy.envs.robots import robot_kind
 from maniskill_tidy.knowledge import ROOM_TYPES, load_catalog
 from maniskill_tidy.models.checkpoints import (
@@ -375,7 +374,7 @@ class LearnedTeam(Team):
     threadsafe_agents = True
     agent_processes = True
     perception: ClassVar[str] = describe("agents/perception/knowledge", DecisionConfig())
-    look: ClassVar[str | None] = ENV_ID  # agents/perception's views were v1's (perception_look)
+    look: ClassVar[str | None] = perception_look(AgentConfig.perception)  # its views' look: v1
 
     config_file: ClassVar[Path] = DEFAULT_CONFIG
 
@@ -414,7 +413,8 @@ class LearnedTeam(Team):
         try:
             verify(cls.model_folder(team), f"maniskill-tidy train {config} --setting {setting}",
                    "make train-all")  # fmt: skip
-            verify(resolve(cfg.perception), "maniskill-tidy train perception")
+            look = perception_look(cfg.perception)
+            verify(resolve(cfg.perception), f"maniskill-tidy train perception --env {look}")
         except CheckpointError as err:
             return str(err)
         return None

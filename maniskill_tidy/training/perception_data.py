@@ -296,7 +296,8 @@ def load_views(directory: Path) -> dict[str, np.ndarray]:
     """Every shard of a split folder, concatenated; detection frame indices made global."""
     shards = sorted(Path(directory).glob("house_*.npz"))
     if not shards:
-        raise FileNotFoundError(f"no views in {directory}; run `maniskill-tidy train perception`")
+        raise FileNotFoundError(f"no views in {directory}; run `maniskill-tidy train perception` "
+                                "(`--env HeteroTidy-v1` for v1's views)")  # fmt: skip
     parts: dict[str, list] = {}
     offset = 0
     catalog = load_catalog()

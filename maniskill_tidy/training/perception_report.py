@@ -292,7 +292,8 @@ def report(agents: Path, dataset: Path, split: str, work: Path, workers: int = 2
         path = agents / variant / "card.json"
         if not path.is_file():
             raise FileNotFoundError(
-                f"{path} not found; train the agents with `maniskill-tidy train perception`"
+                f"{path} not found; train the agents with `maniskill-tidy train perception` "
+                "(`--env HeteroTidy-v1` for v1's, as `make train`)"
             )
         cards[variant] = json.loads(path.read_text())
     card = cards["knowledge"]

@@ -397,14 +397,14 @@ def model_card(card: dict) -> str:
     look = card["config"].get("env", "HeteroTidy-v1")
     defaults = {"visual": visual_encoder.WIDTHS, "scene": scene_encoder.WIDTHS}
     widths = {k: tuple(card["config"].get(f"{k}_widths", d)) for k, d in defaults.items()}
-    options = f" --env {look}" if look != "HeteroTidy-v1" else ""
+    options = f" --env {look}"  # named: the command's default look (v2) is not v1's
     for k, w in widths.items():
         if w != defaults[k]:
             options += f" --{k}-widths {','.join(map(str, w))}"
-    if options:
-        made = f"`maniskill-tidy train perception{options} --out FOLDER`"
+    if look == "HeteroTidy-v1" and "widths" not in options:
+        made = "`maniskill-tidy train perception --env HeteroTidy-v1` (`make train`)"
     else:
-        made = "`maniskill-tidy train perception` (`make train`)"
+        made = f"`maniskill-tidy train perception{options} --out FOLDER`"
     lines = [
         f"# {card['variant']}: the paper's perception and reasoning modules"
         + ("" if card["knowledge"] else " without the knowledge graph (w/o Know.)"),
