@@ -513,8 +513,8 @@ def write_leaderboard(root: Path = Path("eval")) -> Path:
         "exist. Rows marked *(paper)* are the "
         "figures the paper reports (AI2-THOR/ProcTHOR, learned models): reference points, not "
         "runs of this code. *(privileged)* rows read the simulator state. Non-privileged teams "
-        "outside the From pixels tables use ground-truth instance segmentation in place of a "
-        "trained detector. Our "
+        "use ground-truth instance segmentation in place of a trained detector, but in the "
+        "pixels track's tables. Our "
         "Success cells give the 95 % bootstrap interval over episodes in brackets. The "
         "standard protocol is the first start of every meta-task of the test split "
         "(200 episodes per setting); the paper's full protocol plays all 1000.",
