@@ -303,6 +303,19 @@ def test_commands_default_to_v2_and_a_team_reading_v1_pixels_through_weights_to_
     assert _look("expert", "HeteroTidy-v1") == "HeteroTidy-v1" and capsys.readouterr().out == ""
 
 
+def test_a_learned_teams_look_is_read_from_its_perception_card_when_asked(tmp_path):
+    """Not when its class is made: a perception retrained in the other look moves the team's
+    default look without a restart, and importing the teams reads no card."""
+    from maniskill_tidy.policies.agent_config import PerceptionLook
+
+    class Team:
+        look = PerceptionLook(tmp_path)
+
+    assert Team.look == "HeteroTidy-v1"  # no card yet: perceptions from before looks
+    (tmp_path / "card.json").write_text(json.dumps({"config": {"env": "HeteroTidy-v2"}}))
+    assert Team.look == Team().look == "HeteroTidy-v2"
+
+
 def test_what_rests_on_a_model_stays_above_it():
     """Over the middle of each surface of a static piece, the shipped model lies under the
     height the spec puts objects at: a thin object on a cushion or in a tub stays in view."""

@@ -13,8 +13,8 @@ from pathlib import Path
 
 from maniskill_tidy.common.agent_files import resolve
 from maniskill_tidy.policies.agent_config import (
+    PerceptionLook,
     QmixConfig,
-    perception_look,
     read_config,
     trainer_of,
 )
@@ -115,7 +115,7 @@ def team_class(policy: str) -> type[AnyTeam]:
                 {
                     "name": cfg.name,
                     "folder": Path(cfg.out),
-                    "look": perception_look(cfg.perception),
+                    "look": PerceptionLook(cfg.perception),
                 },
             )
         if trainer == "memory":

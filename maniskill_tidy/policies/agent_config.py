@@ -384,3 +384,14 @@ def perception_look(folder: str | Path) -> str:
     if not card.is_file():
         return ENV_ID
     return json.loads(card.read_text()).get("config", {}).get("env", ENV_ID)
+
+
+class PerceptionLook:
+    """A learned team's ``Team.look``, read from its perception's card when asked (on the
+    class or an instance), not when the module is imported."""
+
+    def __init__(self, folder: str | Path) -> None:
+        self.folder = folder
+
+    def __get__(self, obj: object, owner: type | None = None) -> str:
+        return perception_look(self.folder)

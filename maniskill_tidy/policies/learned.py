@@ -37,7 +37,7 @@ from maniskill_tidy.models.checkpoints import (
 )
 from maniskill_tidy.models.communication import TASK, scheme
 from maniskill_tidy.models.decision import DecisionConfig, crop_layout, goal_maps, suspects
-from maniskill_tidy.policies.agent_config import AgentConfig, perception_look
+from maniskill_tidy.policies.agent_config import AgentConfig, PerceptionLook, perception_look
 from maniskill_tidy.policies.base import (
     EXPLORE,
     OPERATIONS,
@@ -374,7 +374,7 @@ class LearnedTeam(Team):
     threadsafe_agents = True
     agent_processes = True
     perception: ClassVar[str] = describe("agents/perception/knowledge", DecisionConfig())
-    look: ClassVar[str | None] = perception_look(AgentConfig.perception)  # its views' look: v1
+    look: ClassVar[str | None] = PerceptionLook(AgentConfig.perception)  # its views': v1
 
     config_file: ClassVar[Path] = DEFAULT_CONFIG
 

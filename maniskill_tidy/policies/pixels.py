@@ -455,7 +455,7 @@ class PixelsTeam(Team):
             raise ValueError(f"{inner.name}: only a camera-only team plays the pixels track")
         self.inner, self.segmenter = inner, Segmenter(weights)
         self.name = inner.name
-        for attr in ("communication", "central", "rounds", "team_override", "rules", "look"):
+        for attr in ("communication", "central", "rounds", "team_override", "rules"):
             setattr(self, attr, getattr(inner, attr))
         self.perception = f"learned segmenter {self.segmenter.sha256[:12]} (pixels track); " + (
             inner.perception.replace("ground-truth segmentation", "predicted masks")

@@ -28,7 +28,7 @@ from maniskill_tidy.models.checkpoints import (
     verify,
 )
 from maniskill_tidy.models.qmix import ACTIONS, QmixTeamModel, observation
-from maniskill_tidy.policies.agent_config import QmixConfig, perception_look
+from maniskill_tidy.policies.agent_config import PerceptionLook, QmixConfig
 from maniskill_tidy.policies.base import EXPLORE, Agent, AgentView, PublicInfo, SubTask, Team
 from maniskill_tidy.policies.channel import Message, Outbox
 from maniskill_tidy.policies.perceiving import PerceivingAgent
@@ -101,7 +101,7 @@ class QmixTeam(Team):
         "learned: small CNNs and GCN (agents/perception) over ground-truth segmentation; "
         "QMIX Q-networks on the perception features"
     )
-    look: ClassVar[str | None] = perception_look(QmixConfig.perception)  # its views' look: v1
+    look: ClassVar[str | None] = PerceptionLook(QmixConfig.perception)  # its views': v1
     folder: ClassVar[Path] = Path("agents/qmix")
 
     def __init__(self, model: QmixTeamModel | None = None, epsilon: float = 0.0,

@@ -16,7 +16,6 @@ import segmenter_probe
 
 from maniskill_tidy.envs.actions import MIN_PIXELS
 from maniskill_tidy.eval.mask_ap import mask_ap
-from maniskill_tidy.models.segmenter import predict, upsample
 from maniskill_tidy.perception.seg_classes import seg_classes
 from maniskill_tidy.training.segmenter_trainer import instance_pairs
 
@@ -26,20 +25,12 @@ SIZES = ((20, 100), (100, 400), (400, 1600), (1600, None))  # pixels of the 224 
 def main() -> None:
     args = segmenter_probe.arguments(__doc__)
     c = seg_classes()
-    pickupable = np.array([c.is_pickupable(i) and i > 0 for i in range(256)])
+    pickupable = segmenter_probe.pickupable_table()
     frames = segmenter_probe.frames(args)
     model = segmenter_probe.segmenter(args)[0]
-    depth = frames["depth_mm"].astype(np.float32) / 1000
-    labels = upsample(*predict(model, frames["rgb"], depth), depth.shape[1:3])[0]
-    rows = []  # (area, share called an object, share called its type)
-    for k in range(len(labels)):
-        inst, cls = frames["instance"][k], frames["cls"][k]
-        for i in np.unique(inst[inst > 0]):
-            m = inst == i
-            t = int(cls[m][0])
-            if pickupable[t] and m.sum() >= MIN_PIXELS:
-                got = labels[k][m]
-                rows.append((m.sum(), pickupable[got].mean(), (got == t).mean()))
+    # (area, share called an object, share called its type)
+    rows = [(len(got), pickupable[got].mean(), (got == t).mean())
+            for t, got in segmenter_probe.labelled_objects(model, frames)]  # fmt: skip
     rows = np.array(rows)
     for lo, hi in SIZES:
         s = rows[(rows[:, 0] >= lo) & (rows[:, 0] < (hi or np.inf))]

@@ -15,34 +15,23 @@ from collections import Counter, defaultdict
 import numpy as np
 import segmenter_probe
 
-from maniskill_tidy.envs.actions import MIN_PIXELS
-from maniskill_tidy.models.segmenter import predict, upsample
 from maniskill_tidy.perception.seg_classes import seg_classes
 
 
 def main() -> None:
     args = segmenter_probe.arguments(__doc__)
     c = seg_classes()
-    pickupable = np.array([c.is_pickupable(i) and i > 0 for i in range(256)])
+    pickupable = segmenter_probe.pickupable_table()
     frames = segmenter_probe.frames(args)
     model = segmenter_probe.segmenter(args)[0]
-    depth = frames["depth_mm"].astype(np.float32) / 1000
-    labels = upsample(*predict(model, frames["rgb"], depth), depth.shape[1:3])[0]
     sizes, own, anyobj = defaultdict(list), defaultdict(list), defaultdict(list)
     elsewhere: dict[int, Counter] = defaultdict(Counter)  # type -> labels of its other pixels
-    for k in range(len(labels)):
-        inst, cls = frames["instance"][k], frames["cls"][k]
-        for i in np.unique(inst[inst > 0]):
-            m = inst == i
-            t = int(cls[m][0])
-            if not pickupable[t] or m.sum() < MIN_PIXELS:
-                continue
-            got = labels[k][m]
-            sizes[t].append(int(m.sum()))
-            own[t].append(float((got == t).mean()))
-            anyobj[t].append(float(pickupable[got].mean()))
-            elsewhere[t].update(got[got != t].tolist())
-    print(f"{len(labels)} frames of {args.data}; objects of 20 px or more, by type "
+    for t, got in segmenter_probe.labelled_objects(model, frames):
+        sizes[t].append(len(got))
+        own[t].append(float((got == t).mean()))
+        anyobj[t].append(float(pickupable[got].mean()))
+        elsewhere[t].update(got[got != t].tolist())
+    print(f"{len(frames['rgb'])} frames of {args.data}; objects of 20 px or more, by type "
           "(fewest of their pixels labelled their type first)")  # fmt: skip
     print("| type | objects | median px | own type | any object | most of the rest |")
     print("|---|---:|---:|---:|---:|---|")
