@@ -199,6 +199,34 @@ def test_a_run_can_start_from_a_trained_segmenters_weights(tiny_data, tmp_path):
                                 widths=(8, 8, 8, 16, 16)), progress=False)  # fmt: skip
 
 
+def test_extra_train_frames_join_the_train_split_from_other_houses_only(tiny_data, tmp_path):
+    """``--extra``: another dataset's frames join the train split (and the card names them);
+    frames of the train split's own dataset or of another look are refused."""
+    import shutil
+
+    from maniskill_tidy.training import segmenter_trainer as st
+
+    other = tmp_path / "other"
+    shutil.copytree(tiny_data / "train", other)  # stands in for the houses of another seed
+    manifest = json.loads((other / "manifest.json").read_text())
+    with pytest.raises(ValueError, match="another seed"):
+        st.train_segmenter(_cfg(tiny_data, tmp_path / "a", epochs=1, extra=(str(other),)),
+                           progress=False)  # fmt: skip
+    manifest["dataset_hash"] = "0" * 64
+    (other / "manifest.json").write_text(json.dumps(dict(manifest, env="HeteroTidy-v2")))
+    with pytest.raises(ValueError, match="expected HeteroTidy-v1"):
+        st.train_segmenter(_cfg(tiny_data, tmp_path / "b", epochs=1, extra=(str(other),)),
+                           progress=False)  # fmt: skip
+    (other / "manifest.json").write_text(json.dumps(manifest))
+    card = st.train_segmenter(_cfg(tiny_data, tmp_path / "c", epochs=1, extra=(str(other),)),
+                              progress=False)  # fmt: skip
+    assert card["frames"]["train"] == 2 * 27
+    assert card["config"]["extra"] == [{"data_hash": manifest["data_hash"],
+                                        "dataset_hash": "0" * 64, "frames": 27}]  # fmt: skip
+    alone = st.train_segmenter(_cfg(tiny_data, tmp_path / "d", epochs=1), progress=False)
+    assert alone["frames"]["train"] == 27 and "extra" not in alone["config"]
+
+
 def test_a_segmenter_with_a_stem_a_hidden_head_and_relief_saves_and_loads(tmp_path):
     import torch
 

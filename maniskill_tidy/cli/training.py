@@ -122,7 +122,7 @@ def _train_segmenter(args: argparse.Namespace) -> int:
                          crop=args.crop, seed=args.seed, stem=args.stem, head=args.head,
                          zoom=args.zoom, relief=args.relief, focus=args.focus,
                          weight_power=args.weight_power, lr=args.lr, init=args.init,
-                         objectness=args.objectness, **extra)  # fmt: skip
+                         objectness=args.objectness, extra=tuple(args.extra), **extra)  # fmt: skip
     card = train_segmenter(cfg)
     t, v = card["test"], card["val"]
     print(f"{args.out}: best epoch {card['best_epoch']} of {args.epochs} "
@@ -328,6 +328,10 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     ts.add_argument("--lr", type=float, default=2e-3, help="peak learning rate (one cycle)")
     ts.add_argument("--init", help="a trained segmenter's folder whose weights start this run "
                     "(same widths, stem, head and relief)")  # fmt: skip
+    ts.add_argument("--extra", nargs="+", default=[], metavar="FRAMES",
+                    help="more train frames: segmenter-data folders rendered from the houses of "
+                    "a dataset generated with another seed (e.g. `segmenter-data --splits train "
+                    "--out data/segmenter-extra/HeteroTidy-v2`'s train/)")  # fmt: skip
     ts.add_argument("--rescore", action="store_true",
                     help="score the trained segmenter in --out again on --data's val and test "
                     "frames (its card's val, test and agent threshold)")  # fmt: skip

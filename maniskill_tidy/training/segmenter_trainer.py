@@ -83,21 +83,34 @@ class SegTrainConfig:
     # a trained segmenter's folder whose weights start this run (its architecture, which the
     # run's must match): more epochs for a run whose loss still fell at its end
     init: str | None = None
+    # more train frames: segmenter-data folders rendered from other houses (a dataset generated
+    # with another seed, so none of them is a val or test house of ``data``), joined to its
+    # train split; the card names them by data hash
+    extra: tuple[str, ...] = ()
     limit: dict = field(default_factory=dict)  # split -> at most this many frames (tests)
 
 
-def load_split(folder: Path, limit: int | None = None) -> dict[str, np.ndarray]:
-    """Every frame of a split's shards, in house order; ``limit``: evenly spaced frames."""
-    shards = sorted(Path(folder).glob("house_*.npz"))
-    if not shards:
-        raise FileNotFoundError(f"{folder}: no house_*.npz; render it with `maniskill-tidy "
+FRAME_KEYS = ("rgb", "depth_mm", "cls", "instance")
+TRAIN_KEYS = ("rgb", "depth_mm", "cls")  # training reads no instances: a quarter less memory
+
+
+def load_split(folder: Path | list[Path], limit: int | None = None,
+               keys: tuple[str, ...] = FRAME_KEYS) -> dict[str, np.ndarray]:  # fmt: skip
+    """Every frame of a split's shards (of several folders, one after the other), in house
+    order; ``limit``: evenly spaced frames."""
+    folders = folder if isinstance(folder, list) else [folder]
+    shards = [s for f in folders for s in sorted(Path(f).glob("house_*.npz"))]
+    if missing := [f for f in folders if not any(Path(f).glob("house_*.npz"))]:
+        raise FileNotFoundError(f"{missing[0]}: no house_*.npz; render it with `maniskill-tidy "
                                 "segmenter-data`")  # fmt: skip
-    parts: dict[str, list] = {"rgb": [], "depth_mm": [], "cls": [], "instance": []}
+    parts: dict[str, list] = {k: [] for k in keys}
     for shard in shards:
         with np.load(shard) as z:
             for k in parts:
                 parts[k].append(z[k])
-    out = {k: np.concatenate(v) for k, v in parts.items()}
+    out = {}
+    for k in keys:  # one key at a time: the shards' copies go as each array is made
+        out[k] = np.concatenate(parts.pop(k))
     if limit is not None and limit < len(out["rgb"]):
         keep = np.linspace(0, len(out["rgb"]) - 1, limit).round().astype(int)
         out = {k: v[keep] for k, v in out.items()}
@@ -255,6 +268,22 @@ def _start(cfg: SegTrainConfig, model: Segmenter) -> dict:
             "train_seconds": card.get("train_seconds")}  # fmt: skip
 
 
+def _extra_manifest(folder: Path, train: dict) -> dict:
+    """The manifest of ``--extra`` frames, checked against the train split's: the same look
+    and classes, other houses."""
+    if not (folder / "manifest.json").is_file():
+        raise FileNotFoundError(f"--extra {folder}: no segmenter frames (manifest.json); "
+                                "render them with `maniskill-tidy segmenter-data`")  # fmt: skip
+    m = json.loads((folder / "manifest.json").read_text())
+    if m["classes"] != train["classes"] or m["env"] != train["env"]:
+        raise ValueError(f"--extra {folder}: rendered in {m['env']} with classes {m['classes']}; "
+                         f"expected {train['env']} with {train['classes']}")  # fmt: skip
+    if m["dataset_hash"] == train["dataset_hash"]:
+        raise ValueError(f"--extra {folder}: rendered from the train split's dataset; expected "
+                         "the houses of a dataset generated with another seed")  # fmt: skip
+    return m
+
+
 def _rank(scores: dict) -> tuple[float, float]:
     """How val ranks epochs: mask AP50, then pixel accuracy (a segmenter that finds no object
     yet still learns the floor and walls teams map with)."""
@@ -273,10 +302,12 @@ def train_segmenter(cfg: SegTrainConfig, progress: bool = True) -> dict:
         if m["classes"] != classes.digest:
             raise ValueError(f"{data / s}: rendered with another class table ({m['classes']}, "
                              f"this code's is {classes.digest}); render it again")  # fmt: skip
-    looks = {m["env"] for m in manifests.values()}
+    extras = {e: _extra_manifest(Path(e), manifests["train"]) for e in cfg.extra}
+    looks = {m["env"] for m in [*manifests.values(), *extras.values()]}
     if len(looks) != 1:
         raise ValueError(f"{data}: splits rendered in different looks {sorted(looks)}")
-    train = load_split(data / "train", cfg.limit.get("train"))
+    train = load_split([data / "train", *map(Path, cfg.extra)], cfg.limit.get("train"),
+                       TRAIN_KEYS)  # fmt: skip
     val = load_split(data / "val", cfg.limit.get("val", cfg.eval_frames))
     torch.manual_seed(cfg.seed)
     model = Segmenter(len(classes.names), cfg.widths, cfg.stem, cfg.head, cfg.relief)
@@ -287,6 +318,10 @@ def train_segmenter(cfg: SegTrainConfig, progress: bool = True) -> dict:
     weights = class_weights(train["cls"], len(classes.names), cfg.weight_power)
     key = {**asdict(cfg), "widths": list(cfg.widths), "classes": classes.digest,
            "data": {s: m["data_hash"] for s, m in manifests.items()}}  # fmt: skip
+    key["extra"] = [{"data_hash": m["data_hash"], "dataset_hash": m["dataset_hash"],
+                     "frames": m["frames"]} for m in extras.values()]  # fmt: skip
+    if not key["extra"]:  # the key of runs from before the option, whose checkpoints resume
+        key.pop("extra")
     key.pop("out")
     if start:  # the weights it starts from, not where they lay
         key["init"] = start["weights_sha256"]
