@@ -311,9 +311,16 @@ def test_a_learned_teams_look_is_read_from_its_perception_card_when_asked(tmp_pa
     class Team:
         look = PerceptionLook(tmp_path)
 
-    assert Team.look == "HeteroTidy-v1"  # no card yet: perceptions from before looks
+    from maniskill_tidy.policies.learned import learned_team_class
+
+    config = tmp_path / "team.yaml"  # a team made from a config (eval --policy CONFIG.yaml)
+    config.write_text(
+        f"base: {Path('agents/hangrcom.yaml').resolve()}\nname: look-test\nperception: {tmp_path}\n"
+    )
+    made = learned_team_class(config)
+    assert Team.look == made.look == "HeteroTidy-v1"  # no card yet: perceptions before looks
     (tmp_path / "card.json").write_text(json.dumps({"config": {"env": "HeteroTidy-v2"}}))
-    assert Team.look == Team().look == "HeteroTidy-v2"
+    assert Team.look == Team().look == made.look == "HeteroTidy-v2"
 
 
 def test_what_rests_on_a_model_stays_above_it():

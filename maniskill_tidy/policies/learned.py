@@ -456,7 +456,7 @@ def learned_team_class(config: str | Path) -> type[LearnedTeam]:
     comm = scheme(decision.communication)
     attrs = {"name": cfg.name, "config_file": resolve(config), "communication": comm.name,
              "perception": describe(cfg.perception, decision),
-             "look": perception_look(cfg.perception),
+             "look": PerceptionLook(cfg.perception),
              "central": comm.uploads, "rounds": comm.rounds,
              "team_override": cfg.team, "oracle": cfg.acting().oracle,
              "privileged": cfg.acting().oracle}  # fmt: skip
