@@ -117,21 +117,28 @@ train-perception-v2: setup
 # cameras at 0.22, 0.9, 1.0 m), with the renderer's classes and instances as labels; one shard
 # per house (resumable), train / val / test by house. Measured with 2 workers on an idle
 # machine: 16 min for v2's 120 houses (19,509 frames, 1.3 GB), 8.5 min for v1's (19,485, 168 MB).
+# v2's segmenter also trains on the 168 train houses of another dataset (generator seed 1, so
+# none of data/tidy120's val or test houses), every 12th step: 17 min (13,599 frames).
 SEGMENTER_DATA ?= data/segmenter
+EXTRA_HOUSES ?= data/tidy250s1
+EXTRA_FRAMES = $(SEGMENTER_DATA)-extra/HeteroTidy-v2
 segmenter-data: setup
 	test -f $(DATA120)/manifest.json || $(PY) -m maniskill_tidy.cli generate --houses 120 --seed 0 --workers 2 --out $(DATA120)
 	for e in HeteroTidy-v2 HeteroTidy-v1; do $(PY) -m maniskill_tidy.cli segmenter-data --env $$e \
 	  --dataset $(DATA120) --out $(SEGMENTER_DATA)/$$e --workers 2 || exit 1; done
+	test -f $(EXTRA_HOUSES)/manifest.json || $(PY) -m maniskill_tidy.cli generate --houses 250 --seed 1 --workers 2 --out $(EXTRA_HOUSES)
+	$(PY) -m maniskill_tidy.cli segmenter-data --env HeteroTidy-v2 --dataset $(EXTRA_HOUSES) --splits train \
+	  --every 12 --out $(EXTRA_FRAMES) --workers 2
 
 # The segmenter per look on those frames (resumable per epoch) and the int8 graph agents run:
-# agents/segmenter-v2 (24, 32 channels first): 16 epochs from scratch (about 55 min alone),
-# then twice 16 more from the last stage's weights at half the peak rate (about 35 min each;
-# its loss still fell at each stage's end); -v1 (the same widths, 16 epochs, about 33 min).
-SEG_V2 = $(PY) -m maniskill_tidy.cli train-segmenter --data $(SEGMENTER_DATA)/HeteroTidy-v2
+# agents/segmenter-v2 (24, 32 channels first), on the frames of 248 train houses: 16 epochs
+# from scratch (62 min alone), then 16 more from those weights at half the peak rate (about
+# 65 min; its loss still fell at the first run's end); -v1 (the same widths, 80 houses,
+# 16 epochs, about 33 min).
+SEG_V2 = $(PY) -m maniskill_tidy.cli train-segmenter --data $(SEGMENTER_DATA)/HeteroTidy-v2 --extra $(EXTRA_FRAMES)/train
 train-segmenter: segmenter-data
-	$(SEG_V2) --out agents/experiments/segmenter-v2-w24
-	$(SEG_V2) --out agents/experiments/segmenter-v2-more --init agents/experiments/segmenter-v2-w24 --lr 1e-3
-	$(SEG_V2) --out agents/segmenter-v2 --init agents/experiments/segmenter-v2-more --lr 1e-3
+	$(SEG_V2) --out agents/experiments/segmenter-v2-extra16
+	$(SEG_V2) --out agents/segmenter-v2 --init agents/experiments/segmenter-v2-extra16 --lr 1e-3
 	$(PY) -m maniskill_tidy.cli train-segmenter --data $(SEGMENTER_DATA)/HeteroTidy-v1 --out agents/segmenter-v1
 
 # Each look's segmenter on each look's test frames: eval/segmenter_cross_look.{json,md}.
