@@ -322,6 +322,23 @@ def test_a_row_played_under_a_teams_earlier_rules_is_marked_and_not_resumed(tmp_
     assert (directory / "episodes.jsonl").read_text() == lines
 
 
+def test_a_pixels_row_played_with_another_segmenter_than_the_one_that_ships_says_so():
+    """A pixels row records the sha256 of what its agents ran; once the segmenter it names is
+    retrained, its row is to be played again, and the From-pixels table says so."""
+    from maniskill_tidy.eval.leaderboard import pixels_table
+    from maniskill_tidy.models.checkpoints import served_sha256
+
+    shipped = served_sha256(Path("agents/segmenter-v2"))
+    runs = {
+        f"{name}-v2-pixels": {**_summary(name, [True, False], 1), "env": "HeteroTidy-v2",
+                              "segmentation": f"learned:{sha}"}
+        for name, sha in [("memory", shipped), ("heuristic-none", "0" * 64)]
+    }  # fmt: skip
+    rows = {line.split("|")[1].strip(): line for line in pixels_table(runs, {}).splitlines()[2:]}
+    assert f"({shipped[:12]})" in rows["**memory-v2-pixels**"]
+    assert "(000000000000; not the one that ships)" in rows["**heuristic-none-v2-pixels**"]
+
+
 def test_paper_figures_whose_all_lies_outside_single_and_cross_are_flagged():
     """All averages the Single and Cross episodes; the paper's Table 6 prints two rows where it
     cannot (w/o Know. %PS All 0.010, w/o HierDec. %PS Cross 0.99)."""

@@ -244,6 +244,23 @@ def ground_truth_partner(policy: str) -> str:
     return policy.split("-pixels", 1)[0]
 
 
+def shipped_segmenter(policy: str, look: str) -> str | None:
+    """The sha256 agents record for the segmenter a pixels row names, as it ships now (None
+    where its folder is not there): a row whose agents ran other weights is to be played
+    again, and its table says so."""
+    from maniskill_tidy.common.agent_files import resolve
+    from maniskill_tidy.models.checkpoints import CheckpointError, served_sha256
+
+    if "-pixels-" in policy:
+        folder = policy.split("-pixels-", 1)[1]
+    else:
+        folder = f"segmenter-{look.rsplit('-', 1)[1]}"
+    try:
+        return served_sha256(resolve(f"agents/{folder}"))
+    except (CheckpointError, OSError):
+        return None
+
+
 def pixels_table(runs: dict[str, dict], played: dict[str, list[EpisodeRecord]]) -> str:
     """Each pixels run beside its team on ground truth in the same look: Success, and the
     paired difference over the episodes both played."""
@@ -256,10 +273,12 @@ def pixels_table(runs: dict[str, dict], played: dict[str, list[EpisodeRecord]]) 
         s = runs[policy]
         partner = ground_truth_partner(policy)
         look = s.get("env", "HeteroTidy-v1")
-        weights = s["segmentation"].split(":", 1)[-1][:12]
+        weights = s["segmentation"].split(":", 1)[-1]
         trained = policy.split("-pixels-", 1)[1] if "-pixels-" in policy else "its own look's"
+        shipped = shipped_segmenter(policy, look)
+        stale = "; not the one that ships" if shipped not in (None, weights) else ""
         m = s["metrics"]["All"]
-        cells = [f"**{policy}**", look, f"{trained} ({weights})",
+        cells = [f"**{policy}**", look, f"{trained} ({weights[:12]}{stale})",
                  f"{m['Success']:.3f}{_interval(m, 'Success')}"]  # fmt: skip
         g = runs.get(partner)
         if g is None or policy not in played or partner not in played:
