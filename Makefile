@@ -132,8 +132,8 @@ segmenter-data: setup
 
 # The segmenter per look on those frames (resumable per epoch) and the int8 graph agents run:
 # agents/segmenter-v2 (24, 32 channels first), on the frames of 248 train houses: 16 epochs
-# from scratch (62 min alone), then 16 more from those weights at half the peak rate (about
-# 65 min; its loss still fell at the first run's end); -v1 (the same widths, 80 houses,
+# from scratch (62 min alone), then 16 more from those weights at half the peak rate (69
+# min alone; its loss still fell at the first run's end); -v1 (the same widths, 80 houses,
 # 16 epochs, about 33 min).
 SEG_V2 = $(PY) -m maniskill_tidy.cli train-segmenter --data $(SEGMENTER_DATA)/HeteroTidy-v2 --extra $(EXTRA_FRAMES)/train
 train-segmenter: segmenter-data
