@@ -329,14 +329,20 @@ def test_a_pixels_row_played_with_another_segmenter_than_the_one_that_ships_says
     from maniskill_tidy.models.checkpoints import served_sha256
 
     shipped = served_sha256(Path("agents/segmenter-v2"))
+    other_look = served_sha256(Path("agents/segmenter-v1"))
     runs = {
-        f"{name}-v2-pixels": {**_summary(name, [True, False], 1), "env": "HeteroTidy-v2",
-                              "segmentation": f"learned:{sha}"}
-        for name, sha in [("memory", shipped), ("heuristic-none", "0" * 64)]
+        name: {**_summary(name, [True, False], 1), "env": "HeteroTidy-v2",
+               "segmentation": f"learned:{sha}"}
+        for name, sha in [("memory-v2-pixels", shipped), ("heuristic-none-v2-pixels", "0" * 64),
+                          ("memory-v2-pixels-segmenter-v1", other_look),
+                          ("heuristic-none-v2-pixels-segmenter-v1", shipped)]
     }  # fmt: skip
     rows = {line.split("|")[1].strip(): line for line in pixels_table(runs, {}).splitlines()[2:]}
-    assert f"({shipped[:12]})" in rows["**memory-v2-pixels**"]
+    assert f"its own look's ({shipped[:12]}) |" in rows["**memory-v2-pixels**"]
     assert "(000000000000; not the one that ships)" in rows["**heuristic-none-v2-pixels**"]
+    assert f"segmenter-v1 ({other_look[:12]}) |" in rows["**memory-v2-pixels-segmenter-v1**"]
+    stale = f"segmenter-v1 ({shipped[:12]}; not the one that ships)"
+    assert stale in rows["**heuristic-none-v2-pixels-segmenter-v1**"]
 
 
 def test_paper_figures_whose_all_lies_outside_single_and_cross_are_flagged():
@@ -578,15 +584,18 @@ def test_pixels_rows_get_their_own_table_paired_with_their_team_on_ground_truth(
     import dataclasses
 
     from maniskill_tidy.eval.leaderboard import ground_truth_partner
+    from maniskill_tidy.eval.runner import row_segmenter
+    from maniskill_tidy.models.checkpoints import served_sha256
 
     assert ground_truth_partner("memory-v2-pixels-segmenter-v1") == "memory-v2"
+    shipped = served_sha256(row_segmenter("memory-v2-pixels", "HeteroTidy-v2"))
     outcomes = {"memory-v2": [True] * 16 + [False] * 4,
                 "memory-v2-pixels": [True] * 8 + [False] * 12}  # fmt: skip
     for policy, success in outcomes.items():
         s = {
             **_summary(policy, success, 0),
             "env": "HeteroTidy-v2",
-            "segmentation": "learned:" + "ab" * 32 if "pixels" in policy else "ground-truth",
+            "segmentation": f"learned:{shipped}" if "pixels" in policy else "ground-truth",
         }
         folder = tmp_path / "results" / "setting_I" / policy
         folder.mkdir(parents=True)
@@ -601,6 +610,6 @@ def test_pixels_rows_get_their_own_table_paired_with_their_team_on_ground_truth(
     assert "| **memory-v2**" in main and "memory-v2-pixels" not in main
     row = next(line for line in pixels.splitlines() if line.startswith("| **memory-v2-pixels**"))
     cells = [c.strip() for c in row.split("|")[1:-1]]
-    assert cells[1] == "HeteroTidy-v2" and cells[2] == "its own look's (abababababab)"
+    assert cells[1] == "HeteroTidy-v2" and cells[2] == f"its own look's ({shipped[:12]})"
     assert cells[3].startswith("0.400 [") and cells[4] == "0.800"
     assert cells[5].startswith("-0.400 [") and cells[6] == "0.50"

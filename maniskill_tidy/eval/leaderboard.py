@@ -248,15 +248,11 @@ def shipped_segmenter(policy: str, look: str) -> str | None:
     """The sha256 agents record for the segmenter a pixels row names, as it ships now (None
     where its folder is not there): a row whose agents ran other weights is to be played
     again, and its table says so."""
-    from maniskill_tidy.common.agent_files import resolve
+    from maniskill_tidy.eval.runner import row_segmenter
     from maniskill_tidy.models.checkpoints import CheckpointError, served_sha256
 
-    if "-pixels-" in policy:
-        folder = policy.split("-pixels-", 1)[1]
-    else:
-        folder = f"segmenter-{look.rsplit('-', 1)[1]}"
     try:
-        return served_sha256(resolve(f"agents/{folder}"))
+        return served_sha256(row_segmenter(policy, look))
     except (CheckpointError, OSError):
         return None
 
@@ -265,6 +261,7 @@ def pixels_table(runs: dict[str, dict], played: dict[str, list[EpisodeRecord]]) 
     """Each pixels run beside its team on ground truth in the same look: Success, and the
     paired difference over the episodes both played."""
     from maniskill_tidy.eval.metrics import paired_difference
+    from maniskill_tidy.eval.runner import row_segmenter
 
     lines = ["| Team | look | segmenter | Success (pixels) | Success (ground truth) | "
              "pixels - ground truth (paired) | kept | %FM (pixels / ground truth) |",
@@ -274,8 +271,9 @@ def pixels_table(runs: dict[str, dict], played: dict[str, list[EpisodeRecord]]) 
         partner = ground_truth_partner(policy)
         look = s.get("env", "HeteroTidy-v1")
         weights = s["segmentation"].split(":", 1)[-1]
-        trained = policy.split("-pixels-", 1)[1] if "-pixels-" in policy else "its own look's"
         shipped = shipped_segmenter(policy, look)
+        trained = row_segmenter(policy, look).name
+        trained = "its own look's" if trained == f"segmenter-{look.rsplit('-', 1)[1]}" else trained
         stale = "; not the one that ships" if shipped not in (None, weights) else ""
         m = s["metrics"]["All"]
         cells = [f"**{policy}**", look, f"{trained} ({weights[:12]}{stale})",

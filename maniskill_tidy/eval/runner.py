@@ -65,9 +65,7 @@ class RunConfig:
 
     def segmenter(self) -> str:
         """The folder of the segmenter a pixels run uses."""
-        if self.segmentation == "learned":
-            return str(resolve(f"agents/segmenter-{self.env.rsplit('-', 1)[1]}"))
-        return str(resolve(self.segmentation))
+        return str(segmenter_folder(self.segmentation, self.env))
 
     def env_kwargs(self, images: bool | str) -> dict:
         """``images``: True for every camera image, False for the team's own observation
@@ -91,6 +89,22 @@ class RunConfig:
             "obs_mode": mode,
             "reward_mode": "none",
         }
+
+
+def segmenter_folder(segmentation: str, env: str) -> Path:
+    """``"learned"`` is the look's shipped segmenter (agents/segmenter-v2 for HeteroTidy-v2);
+    anything else names a segmenter's folder."""
+    if segmentation == "learned":
+        return resolve(f"agents/segmenter-{env.rsplit('-', 1)[1]}")
+    return resolve(segmentation)
+
+
+def row_segmenter(name: str, env: str) -> Path:
+    """The segmenter folder a pixels row's name stands for, as it is now (the inverse of
+    ``run_name``'s suffix: ``memory-v2-pixels`` is the look's own, ``memory-v2-pixels-segmenter-v1``
+    agents/segmenter-v1); the leaderboard checks a row's weights against it."""
+    folder = name.split("-pixels-", 1)[1] if "-pixels-" in name else None
+    return segmenter_folder(f"agents/{folder}" if folder else "learned", env)
 
 
 def run_name(cfg: RunConfig) -> str:

@@ -99,10 +99,11 @@ def load_split(folder: Path | list[Path], limit: int | None = None,
     """Every frame of a split's shards (of several folders, one after the other), in house
     order; ``limit``: evenly spaced frames."""
     folders = folder if isinstance(folder, list) else [folder]
-    shards = [s for f in folders for s in sorted(Path(f).glob("house_*.npz"))]
-    if missing := [f for f in folders if not any(Path(f).glob("house_*.npz"))]:
+    per_folder = {f: sorted(Path(f).glob("house_*.npz")) for f in folders}
+    if missing := [f for f, found in per_folder.items() if not found]:
         raise FileNotFoundError(f"{missing[0]}: no house_*.npz; render it with `maniskill-tidy "
                                 "segmenter-data`")  # fmt: skip
+    shards = [s for found in per_folder.values() for s in found]
     parts: dict[str, list] = {k: [] for k in keys}
     for shard in shards:
         with np.load(shard) as z:
