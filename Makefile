@@ -117,11 +117,14 @@ train-perception-v2: setup
 # cameras at 0.22, 0.9, 1.0 m), with the renderer's classes and instances as labels; one shard
 # per house (resumable), train / val / test by house. Measured with 2 workers on an idle
 # machine: 16 min for v2's 120 houses (19,509 frames, 1.3 GB), 8.5 min for v1's (19,485, 168 MB).
-# v2's segmenter also trains on the 168 train houses of another dataset (generator seed 1, so
-# none of data/tidy120's val or test houses), every 12th step: 17 min (13,599 frames).
+# v2's segmenter also trains on the 168 train houses of each of two other datasets (generator
+# seeds 1 and 2, so none of data/tidy120's val or test houses), every 12th step: 17 min each
+# (13,599 and 13,467 frames).
 SEGMENTER_DATA ?= data/segmenter
 EXTRA_HOUSES ?= data/tidy250s1
 EXTRA_FRAMES = $(SEGMENTER_DATA)-extra/HeteroTidy-v2
+EXTRA_HOUSES2 ?= data/tidy250s2
+EXTRA_FRAMES2 = $(SEGMENTER_DATA)-extra2/HeteroTidy-v2
 segmenter-data: setup
 	test -f $(DATA120)/manifest.json || $(PY) -m maniskill_tidy.cli generate --houses 120 --seed 0 --workers 2 --out $(DATA120)
 	for e in HeteroTidy-v2 HeteroTidy-v1; do $(PY) -m maniskill_tidy.cli segmenter-data --env $$e \
@@ -129,16 +132,22 @@ segmenter-data: setup
 	test -f $(EXTRA_HOUSES)/manifest.json || $(PY) -m maniskill_tidy.cli generate --houses 250 --seed 1 --workers 2 --out $(EXTRA_HOUSES)
 	$(PY) -m maniskill_tidy.cli segmenter-data --env HeteroTidy-v2 --dataset $(EXTRA_HOUSES) --splits train \
 	  --every 12 --out $(EXTRA_FRAMES) --workers 2
+	test -f $(EXTRA_HOUSES2)/manifest.json || $(PY) -m maniskill_tidy.cli generate --houses 250 --seed 2 --workers 2 --out $(EXTRA_HOUSES2)
+	$(PY) -m maniskill_tidy.cli segmenter-data --env HeteroTidy-v2 --dataset $(EXTRA_HOUSES2) --splits train \
+	  --every 12 --out $(EXTRA_FRAMES2) --workers 2
 
 # The segmenter per look on those frames (resumable per epoch) and the int8 graph agents run:
-# agents/segmenter-v2 (24, 32 channels first), on the frames of 248 train houses: 16 epochs
-# from scratch (62 min alone), then 16 more from those weights at half the peak rate (69
-# min alone; its loss still fell at the first run's end); -v1 (the same widths, 80 houses,
-# 16 epochs, about 33 min).
+# agents/segmenter-v2 (24, 32 channels first): 16 epochs from scratch on the frames of 248
+# train houses (62 min alone), 16 more from those weights at half the peak rate (69 min
+# alone; its loss still fell at the first run's end), then 12 more on 416 houses' frames, the
+# second extra set added (74 min alone); -v1 (the same widths, 80 houses, 16 epochs, about
+# 33 min).
 SEG_V2 = $(PY) -m maniskill_tidy.cli train-segmenter --data $(SEGMENTER_DATA)/HeteroTidy-v2 --extra $(EXTRA_FRAMES)/train
 train-segmenter: segmenter-data
 	$(SEG_V2) --out agents/experiments/segmenter-v2-extra16
-	$(SEG_V2) --out agents/segmenter-v2 --init agents/experiments/segmenter-v2-extra16 --lr 1e-3
+	$(SEG_V2) --out agents/experiments/segmenter-v2-extra-more --init agents/experiments/segmenter-v2-extra16 --lr 1e-3
+	$(SEG_V2) $(EXTRA_FRAMES2)/train --out agents/segmenter-v2 --init agents/experiments/segmenter-v2-extra-more \
+	  --lr 1e-3 --epochs 12
 	$(PY) -m maniskill_tidy.cli train-segmenter --data $(SEGMENTER_DATA)/HeteroTidy-v1 --out agents/segmenter-v1
 
 # Each look's segmenter on each look's test frames: eval/segmenter_cross_look.{json,md}.
