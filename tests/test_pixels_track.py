@@ -123,6 +123,21 @@ def test_predicted_masks_feed_a_heuristic_agents_map_and_replay(segmenter):
     assert agent.inner.map.explored.any()
 
 
+def test_a_pixels_run_is_not_resumed_with_other_segmenter_weights(segmenter, tmp_path):
+    """Its episodes would mix two segmenters under the sha256 of the last: refused at once."""
+    from maniskill_tidy.eval.runner import RunConfig, evaluate, run_dir
+
+    cfg = RunConfig("heuristic-none", "I", "test", None, episodes=1,
+                    segmentation=str(segmenter))  # fmt: skip
+    directory = run_dir(tmp_path, cfg)
+    directory.mkdir(parents=True)
+    started = {**cfg.__dict__, "segmenter_sha256": "0" * 64}
+    (directory / "run.json").write_text(json.dumps(started))
+    with pytest.raises(ValueError, match="'segmenter_sha256': .'0000"):
+        evaluate(cfg, tmp_path, workers=1, progress=False)
+    assert not (directory / "episodes.jsonl").exists()
+
+
 @pytest.mark.slow  # two whole heuristic episodes through a segmenter: minutes
 def test_a_pixels_run_is_its_own_row_records_its_segmenter_and_replays(segmenter, tmp_path):
     from maniskill_tidy.eval.runner import RunConfig, evaluate

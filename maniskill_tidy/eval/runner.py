@@ -317,6 +317,8 @@ def evaluate(
         model = getattr(team_cls, "model_hash", lambda team: None)(members)
         if model is not None:  # a learned team: resuming with other weights is refused below
             config["model_hash"] = model
+        if cfg.pixels:  # and a pixels run's segmenter, once retrained: its episodes would mix
+            config["segmenter_sha256"] = segmentation.split(":", 1)[1]
         if getattr(team_cls, "rules", ""):  # and a team's rules changed since its first runs
             config["rules"] = team_cls.rules
         run = RunFile(directory, config)
