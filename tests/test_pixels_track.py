@@ -5,6 +5,7 @@ and replay."""
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -123,19 +124,34 @@ def test_predicted_masks_feed_a_heuristic_agents_map_and_replay(segmenter):
     assert agent.inner.map.explored.any()
 
 
-def test_a_pixels_run_is_not_resumed_with_other_segmenter_weights(segmenter, tmp_path):
-    """Its episodes would mix two segmenters under the sha256 of the last: refused at once."""
-    from maniskill_tidy.eval.runner import RunConfig, evaluate, run_dir
+def test_a_pixels_run_is_not_resumed_with_other_segmenter_weights(segmenter, tmp_path, monkeypatch):
+    """Its episodes would mix two segmenters under the sha256 of the last: refused at once,
+    for the segmenter's sha256 alone (every other argument of the run.json the runner wrote
+    is the same)."""
+    from maniskill_tidy.eval.runner import RunConfig, RunFile, evaluate, run_dir
+
+    class Started(Exception):
+        pass
+
+    def start_then_stop(self, directory, config):
+        write(self, directory, config)
+        raise Started
 
     cfg = RunConfig("heuristic-none", "I", "test", None, episodes=1,
                     segmentation=str(segmenter))  # fmt: skip
-    directory = run_dir(tmp_path, cfg)
-    directory.mkdir(parents=True)
-    started = {**cfg.__dict__, "segmenter_sha256": "0" * 64}
-    (directory / "run.json").write_text(json.dumps(started))
-    with pytest.raises(ValueError, match="'segmenter_sha256': .'0000"):
+    write = RunFile.__init__
+    monkeypatch.setattr(RunFile, "__init__", start_then_stop)
+    with pytest.raises(Started):  # run.json written, no episode played
         evaluate(cfg, tmp_path, workers=1, progress=False)
-    assert not (directory / "episodes.jsonl").exists()
+    monkeypatch.undo()
+    path = run_dir(tmp_path, cfg) / "run.json"
+    started = json.loads(path.read_text())
+    sha = started["segmenter_sha256"]
+    path.write_text(json.dumps({**started, "segmenter_sha256": "0" * 64}))
+    diff = re.escape(str({"segmenter_sha256": ("0" * 64, sha)}))
+    with pytest.raises(ValueError, match=f"other arguments {diff} "):
+        evaluate(cfg, tmp_path, workers=1, progress=False)
+    assert not (path.parent / "episodes.jsonl").exists()
 
 
 @pytest.mark.slow  # two whole heuristic episodes through a segmenter: minutes
