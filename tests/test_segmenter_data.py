@@ -256,6 +256,18 @@ def test_instances_split_at_depth_jumps_and_score_a_perfect_prediction_at_ap_one
     assert 0.0 < mask_ap(noisy, pickupable, (224, 224), ignore_below=20)["AP50"] <= 1.0
 
 
+def test_the_best_f1_threshold_keeps_masks_of_one_score_together():
+    """A threshold cannot keep one of two masks with the same score: the F1 is of all of them,
+    whichever order they come in."""
+    from maniskill_tidy.eval.mask_ap import best_f1
+
+    scores, hits = np.array([0.5, 0.5, 0.5, 0.5, 0.2]), np.array([True, False, False, False, False])
+    line = best_f1(scores, hits, 2)
+    assert line["threshold"] == 0.5 and line["precision"] == 0.25 and line["recall"] == 0.5
+    assert best_f1(scores, hits[[3, 1, 2, 0, 4]], 2) == line
+    assert best_f1(np.array([0.9, 0.5]), np.array([True, False]), 1)["f1"] == 1.0
+
+
 def test_the_segmenter_gives_class_logits_at_half_resolution_and_learns():
     import torch
 

@@ -82,6 +82,47 @@ def mask_ap(
     return {**{k: round(float(v), 4) for k, v in zip(KEYS, ev.stats[:6], strict=True)}, **counts}
 
 
+def matches_by_class(
+    frames: Iterable[tuple[list[Mask2D], list[Mask2D]]],
+    classes: Iterable[int],
+    shape,
+    ignore_below: int = 0,
+) -> dict[int, tuple[np.ndarray, np.ndarray, int]]:
+    """Per class: the scores of its predicted masks that count at IoU 0.5 (not on ignored
+    ground truth), whether each matched an object, and how many objects count."""
+    ev, _ = _evaluated(frames, classes, shape, ignore_below)
+    out: dict[int, tuple[list, list, list]] = {}
+    for e in [] if ev is None else ev.evalImgs:
+        if e is None or e["aRng"] != ev.params.areaRng[0]:  # "all" sizes only
+            continue
+        scores, hits, truths = out.setdefault(e["category_id"], ([], [], [0]))
+        keep = ~e["dtIgnore"][0].astype(bool)  # IoU 0.5
+        scores += list(np.asarray(e["dtScores"])[keep])
+        hits += list(e["dtMatches"][0][keep] > 0)
+        truths[0] += int((~e["gtIgnore"].astype(bool)).sum())
+    return {c: (np.array(s, dtype=float), np.array(h, dtype=bool), t[0])
+            for c, (s, h, t) in out.items()}  # fmt: skip
+
+
+def best_f1(scores: np.ndarray, hits: np.ndarray, truths: int) -> dict[str, float]:
+    """The score at which masks ranked by it give the best F1, with the precision and recall
+    there. Masks of one score are kept or left out together (a threshold cannot part them),
+    so the answer does not depend on their order."""
+    if not len(scores):
+        return {"threshold": 0.0, "f1": 0.0, "precision": 0.0, "recall": 0.0}
+    order = np.argsort(-scores, kind="stable")
+    tp = np.cumsum(hits[order].astype(float))
+    precision = tp / np.arange(1, len(tp) + 1)
+    recall = tp / max(truths, 1)
+    f1 = 2 * precision * recall / np.maximum(precision + recall, 1e-12)
+    ranked = scores[order]
+    f1[:-1][ranked[:-1] == ranked[1:]] = -1.0  # inside a run of equal scores
+    k = int(np.argmax(f1))
+    return {"threshold": round(float(scores[order][k]), 4),
+            "f1": round(float(f1[k]), 4), "precision": round(float(precision[k]), 4),
+            "recall": round(float(recall[k]), 4)}  # fmt: skip
+
+
 def score_threshold(
     frames: Iterable[tuple[list[Mask2D], list[Mask2D]]],
     classes: Iterable[int],
@@ -90,24 +131,11 @@ def score_threshold(
 ) -> dict[str, float]:
     """The score above which predicted masks give the best F1 at IoU 0.5 (a right type and
     mask), with the precision and recall there: where an agent that acts on masks, unlike the
-    AP, must draw the line."""
-    ev, counts = _evaluated(frames, classes, shape, ignore_below)
-    if ev is None:
-        return {"threshold": 0.0, "f1": 0.0, "precision": 0.0, "recall": 0.0}
-    scores, hits, truths = [], [], 0
-    for e in ev.evalImgs:
-        if e is None or e["aRng"] != ev.params.areaRng[0]:  # "all" sizes only
-            continue
-        truths += int((~e["gtIgnore"].astype(bool)).sum())
-        keep = ~e["dtIgnore"][0].astype(bool)  # IoU 0.5
-        scores += list(np.asarray(e["dtScores"])[keep])
-        hits += list(e["dtMatches"][0][keep] > 0)
-    order = np.argsort(-np.asarray(scores), kind="stable")
-    tp = np.cumsum(np.asarray(hits, dtype=float)[order])
-    precision = tp / np.arange(1, len(tp) + 1)
-    recall = tp / max(truths, 1)
-    f1 = 2 * precision * recall / np.maximum(precision + recall, 1e-12)
-    k = int(np.argmax(f1))
-    return {"threshold": round(float(np.asarray(scores)[order][k]), 4),
-            "f1": round(float(f1[k]), 4), "precision": round(float(precision[k]), 4),
-            "recall": round(float(recall[k]), 4)}  # fmt: skip
+    AP, must draw the line. One threshold for every class: one per class chosen on half the
+    val houses scored lower F1 on the other half (``docs/research/probes/type_thresholds.py``)."""
+    per_class = matches_by_class(frames, classes, shape, ignore_below).values()
+    if not per_class:
+        return best_f1(np.zeros(0), np.zeros(0, bool), 0)
+    return best_f1(np.concatenate([s for s, _, _ in per_class]),
+                   np.concatenate([h for _, h, _ in per_class]),
+                   sum(t for *_, t in per_class))  # fmt: skip

@@ -18,33 +18,9 @@ from pathlib import Path
 import numpy as np
 
 from maniskill_tidy.envs.actions import MIN_PIXELS
-from maniskill_tidy.eval.mask_ap import _evaluated
+from maniskill_tidy.eval.mask_ap import best_f1, matches_by_class
 from maniskill_tidy.models.checkpoints import served_segmenter
 from maniskill_tidy.training.segmenter_trainer import instance_pairs
-
-
-def matches(pairs, classes, shape) -> dict[int, tuple[np.ndarray, np.ndarray, int]]:
-    """Per class: the kept masks' scores, whether each matched an object, and the objects."""
-    ev = _evaluated(pairs, classes, shape, MIN_PIXELS)[0]
-    out: dict[int, tuple[list, list, list]] = {}
-    for e in ev.evalImgs:
-        if e is None or e["aRng"] != ev.params.areaRng[0]:  # "all" sizes only
-            continue
-        scores, hits, truths = out.setdefault(e["category_id"], ([], [], [0]))
-        keep = ~e["dtIgnore"][0].astype(bool)  # IoU 0.5
-        scores += list(np.asarray(e["dtScores"])[keep])
-        hits += list(e["dtMatches"][0][keep] > 0)
-        truths[0] += int((~e["gtIgnore"].astype(bool)).sum())
-    return {c: (np.array(s), np.array(h, bool), t[0]) for c, (s, h, t) in out.items()}
-
-
-def best_threshold(scores: np.ndarray, hits: np.ndarray, truths: int) -> tuple[float, float]:
-    """The score at the best F1 of the masks ranked by it, and that F1."""
-    order = np.argsort(-scores, kind="stable")
-    tp = np.cumsum(hits[order])
-    f1 = 2 * tp / (np.arange(1, len(tp) + 1) + truths)
-    k = int(np.argmax(f1))
-    return float(scores[order][k]), float(f1[k])
 
 
 def scored(m: dict, common: float, own: dict[int, float]) -> str:
@@ -79,7 +55,7 @@ def main() -> None:
                     frames.setdefault(k, []).append(z[k])
         frames = {k: np.concatenate(v) for k, v in frames.items()}
         pairs, classes, labels = instance_pairs(runtime, frames)
-        halves.append(matches(pairs, classes, labels.shape[1:3]))
+        halves.append(matches_by_class(pairs, classes, labels.shape[1:3], MIN_PIXELS))
     print(f"{args.weights} on {args.data}: {len(shards)} houses in two halves")
     print("| chosen on | types with their own | one threshold | per type |")
     print("|---|---:|---|---|")
@@ -87,10 +63,10 @@ def main() -> None:
         for name, (choose, score) in (("even", halves), ("odd", halves[::-1])):
             scores = np.concatenate([s for s, _, _ in choose.values()])
             hits = np.concatenate([h for _, h, _ in choose.values()])
-            common = best_threshold(scores, hits, sum(t for *_, t in choose.values()))[0]
-            own = {c: best_threshold(s, h, t) for c, (s, h, t) in choose.items()
+            common = best_f1(scores, hits, sum(t for *_, t in choose.values()))["threshold"]
+            own = {c: best_f1(s, h, t) for c, (s, h, t) in choose.items()
                    if t >= least and len(s)}  # fmt: skip
-            own = {c: thr for c, (thr, f1) in own.items() if f1 > 0}
+            own = {c: b["threshold"] for c, b in own.items() if b["f1"] > 0}
             print(f"| {name} houses (types of {least}+) | {len(own)} | "
                   f"{scored(score, common, {})} | {scored(score, common, own)} |")  # fmt: skip
 
