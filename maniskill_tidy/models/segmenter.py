@@ -73,7 +73,10 @@ class Segmenter(nn.Module):
         stem: int = 0,
         head: int = 0,
         relief: bool = False,
+        make_block=block,
     ) -> None:
+        """``make_block(cin, cout, stride)``: each level's layers (:func:`block`; a probe
+        times other ones, torchvision's ResNet takes its block the same way)."""
         super().__init__()
         self.classes, self.widths, self.stem_width, self.head_width = (
             classes, tuple(widths), stem, head
@@ -90,10 +93,11 @@ class Segmenter(nn.Module):
         self.down = nn.ModuleList()
         cin = stem or inputs
         for w in widths:  # stride 2, 4, 8, 16, 32
-            self.down.append(block(cin, w, stride=2))
+            self.down.append(make_block(cin, w, stride=2))
             cin = w
         self.up = nn.ModuleList(
-            block(widths[i + 1] + widths[i], widths[i]) for i in reversed(range(len(widths) - 1))
+            make_block(widths[i + 1] + widths[i], widths[i])
+            for i in reversed(range(len(widths) - 1))
         )
         # ``head`` > 0: a hidden 1 x 1 layer this wide before the class logits, so that ~100
         # classes are told apart from more than the first level's few channels per pixel

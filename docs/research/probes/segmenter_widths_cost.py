@@ -52,13 +52,9 @@ def separable_block(cin: int, cout: int, stride: int = 1) -> nn.Sequential:
 
 
 def build(kind: str, widths: tuple[int, ...]) -> Segmenter:
-    plain = segmenter.block
-    segmenter.block = separable_block if kind == "separable" else plain
-    try:
-        torch.manual_seed(0)
-        return Segmenter(len(seg_classes().names), widths).eval()
-    finally:
-        segmenter.block = plain
+    torch.manual_seed(0)
+    make = separable_block if kind == "separable" else segmenter.block
+    return Segmenter(len(seg_classes().names), widths, make_block=make).eval()
 
 
 def main() -> None:
