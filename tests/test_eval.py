@@ -323,22 +323,28 @@ def test_a_row_played_under_a_teams_earlier_rules_is_marked_and_not_resumed(tmp_
 
 
 def test_a_pixels_row_played_with_another_segmenter_than_the_one_that_ships_says_so():
-    """A pixels row records the sha256 of what its agents ran; once the segmenter it names is
-    retrained, its row is to be played again, and the From-pixels table says so."""
+    """A pixels row records the sha256 of what its agents ran and how they read its labels;
+    once the segmenter it names is retrained, or the agents read labels otherwise, its row is
+    to be played again, and the From-pixels table says so."""
     from maniskill_tidy.eval.leaderboard import pixels_table
     from maniskill_tidy.models.checkpoints import served_sha256
+    from maniskill_tidy.policies.pixels import PIXELS_PIPELINE
 
     shipped = served_sha256(Path("agents/segmenter-v2"))
     other_look = served_sha256(Path("agents/segmenter-v1"))
     runs = {
         name: {**_summary(name, [True, False], 1), "env": "HeteroTidy-v2",
-               "segmentation": f"learned:{sha}"}
+               "segmentation": f"learned:{sha}", "pixels_pipeline": PIXELS_PIPELINE}
         for name, sha in [("memory-v2-pixels", shipped), ("heuristic-none-v2-pixels", "0" * 64),
                           ("memory-v2-pixels-segmenter-v1", other_look),
-                          ("heuristic-none-v2-pixels-segmenter-v1", shipped)]
+                          ("heuristic-none-v2-pixels-segmenter-v1", shipped),
+                          ("memory-links-v2-pixels", shipped)]
     }  # fmt: skip
+    del runs["memory-links-v2-pixels"]["pixels_pipeline"]  # played before it was recorded
     rows = {line.split("|")[1].strip(): line for line in pixels_table(runs, {}).splitlines()[2:]}
     assert f"its own look's ({shipped[:12]}) |" in rows["**memory-v2-pixels**"]
+    before = f"({shipped[:12]}; before the {PIXELS_PIPELINE!r} pipeline) |"
+    assert before in rows["**memory-links-v2-pixels**"]
     assert "(000000000000; not the one that ships)" in rows["**heuristic-none-v2-pixels**"]
     assert f"segmenter-v1 ({other_look[:12]}) |" in rows["**memory-v2-pixels-segmenter-v1**"]
     stale = f"segmenter-v1 ({shipped[:12]}; not the one that ships)"
@@ -588,6 +594,8 @@ def test_pixels_rows_get_their_own_table_paired_with_their_team_on_ground_truth(
     from maniskill_tidy.models.checkpoints import served_sha256
 
     assert ground_truth_partner("memory-v2-pixels-segmenter-v1") == "memory-v2"
+    from maniskill_tidy.policies.pixels import PIXELS_PIPELINE
+
     shipped = served_sha256(row_segmenter("memory-v2-pixels", "HeteroTidy-v2"))
     outcomes = {"memory-v2": [True] * 16 + [False] * 4,
                 "memory-v2-pixels": [True] * 8 + [False] * 12}  # fmt: skip
@@ -596,6 +604,7 @@ def test_pixels_rows_get_their_own_table_paired_with_their_team_on_ground_truth(
             **_summary(policy, success, 0),
             "env": "HeteroTidy-v2",
             "segmentation": f"learned:{shipped}" if "pixels" in policy else "ground-truth",
+            **({"pixels_pipeline": PIXELS_PIPELINE} if "pixels" in policy else {}),
         }
         folder = tmp_path / "results" / "setting_I" / policy
         folder.mkdir(parents=True)

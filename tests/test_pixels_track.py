@@ -184,7 +184,7 @@ def test_the_teams_bench_times_a_pixels_team_and_its_stages(segmenter):
     from maniskill_tidy.eval.team_benchmark import bench_team, report
 
     row = bench_team("heuristic-none", episodes=1, segmentation=str(segmenter))
-    assert row["team"] == "heuristic-none-pixels" and row["ratio"] > 1.0
+    assert row["team"] == f"heuristic-none-pixels ({segmenter})" and row["ratio"] > 1.0
     ms = row["ms_per_frame"]
     assert row["frames"] >= 3 and all(v > 0 for v in ms.values())
     # the stages are part of the team's time, never more than it

@@ -163,6 +163,29 @@ def test_depth_contrast_rings_a_mask_as_a_scipy_dilation_does_at_the_frame_borde
             assert depth_contrast(m, depth) == pytest.approx(float(want), abs=1e-6)
 
 
+def test_refined_masks_follow_the_depth_silhouette_not_the_grid():
+    """Labels on a grid of 2 x 2 pixel cells (each cell's depth read at its first pixel) miss
+    an object's first row and column and spill one past its last; with depth's guidance its
+    mask at full resolution is the object's own pixels, and a mask on a flat background keeps
+    its cells."""
+    from maniskill_tidy.perception.instances import Mask2D, coarse, refined
+
+    depth = np.full((24, 24), 2.0, np.float32)
+    depth[5:13, 7:15] = 1.0  # the object: rows 5..12, columns 7..14
+    cells = coarse(depth, 2) < 1.5  # what a right segmenter labels: cell rows 3..6, cols 4..7
+    other = np.zeros((12, 12), bool)
+    other[9:11, 1:3] = True
+    masks = [Mask2D(70, cells, 0.9, (slice(3, 7), slice(4, 8))), Mask2D(71, other, 0.8)]
+    silhouette = depth < 1.5
+    assert (masks[0].upscaled(2).mask != silhouette).sum() == 30  # rows 5, 13; columns 7, 15
+    obj, flat = refined(masks, depth, 2)
+    assert np.array_equal(obj.mask, silhouette) and (obj.cls, obj.score) == (70, 0.9)
+    assert obj.mask[obj.window].sum() == obj.mask.sum()  # its box holds it
+    assert np.array_equal(flat.mask, other.repeat(2, axis=0).repeat(2, axis=1))
+    kept = refined(masks, depth, 2, min_pixels=20)  # the 16-pixel one left out
+    assert len(kept) == 1 and np.array_equal(kept[0].mask, silhouette)
+
+
 def test_plane_relief_reads_a_cards_thickness_on_a_slanted_table_and_a_texture_as_none():
     from maniskill_tidy.perception.instances import Mask2D, depth_contrast, plane_relief
 

@@ -262,6 +262,7 @@ def pixels_table(runs: dict[str, dict], played: dict[str, list[EpisodeRecord]]) 
     paired difference over the episodes both played."""
     from maniskill_tidy.eval.metrics import paired_difference
     from maniskill_tidy.eval.runner import row_segmenter
+    from maniskill_tidy.policies.pixels import PIXELS_PIPELINE
 
     lines = ["| Team | look | segmenter | Success (pixels) | Success (ground truth) | "
              "pixels - ground truth (paired) | kept | %FM (pixels / ground truth) |",
@@ -275,6 +276,8 @@ def pixels_table(runs: dict[str, dict], played: dict[str, list[EpisodeRecord]]) 
         trained = row_segmenter(policy, look).name
         trained = "its own look's" if trained == f"segmenter-{look.rsplit('-', 1)[1]}" else trained
         stale = "; not the one that ships" if shipped not in (None, weights) else ""
+        if s.get("pixels_pipeline", "") != PIXELS_PIPELINE:  # its agents read labels otherwise
+            stale += f"; before the {PIXELS_PIPELINE!r} pipeline"
         m = s["metrics"]["All"]
         cells = [f"**{policy}**", look, f"{trained} ({weights[:12]}{stale})",
                  f"{m['Success']:.3f}{_interval(m, 'Success')}"]  # fmt: skip

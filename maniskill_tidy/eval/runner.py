@@ -37,7 +37,7 @@ from maniskill_tidy.eval.metrics import EpisodeRecord, summarize
 from maniskill_tidy.eval.pixels_losses import PixelsLosses
 from maniskill_tidy.policies import make_team, team_class
 from maniskill_tidy.policies.channel import CENTRAL
-from maniskill_tidy.policies.pixels import PIXELS_OBSERVATION
+from maniskill_tidy.policies.pixels import PIXELS_OBSERVATION, PIXELS_PIPELINE
 
 RECORD_MODES = ("none", "failures", "all")
 ALL_IMAGES = "rgb+depth+segmentation"
@@ -319,6 +319,7 @@ def evaluate(
             config["model_hash"] = model
         if cfg.pixels:  # and a pixels run's segmenter, once retrained: its episodes would mix
             config["segmenter_sha256"] = segmentation.split(":", 1)[1]
+            config["pixels_pipeline"] = PIXELS_PIPELINE  # and how its agents read the labels
         if getattr(team_cls, "rules", ""):  # and a team's rules changed since its first runs
             config["rules"] = team_cls.rules
         run = RunFile(directory, config)
@@ -378,6 +379,7 @@ def _summary(
         "dataset_hash": dataset_hash,
         "model_hash": config.get("model_hash"),  # a learned team's weights; None otherwise
         "rules": config.get("rules", ""),  # the team's decision rules (Team.rules)
+        **({"pixels_pipeline": config["pixels_pipeline"]} if cfg.pixels else {}),
         **run.versions(),
         "seed": cfg.seed,
         "episodes": len(records),

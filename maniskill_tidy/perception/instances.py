@@ -157,6 +157,72 @@ def split_instances(
     return out
 
 
+# metres per full-resolution pixel of distance: how much a pixel prefers a nearer cell of the
+# segmenter's grid over one whose depth matches its own better (``refined``)
+GUIDE_DISTANCE = 0.03  # chosen on val among 0.003, 0.01, 0.03, 0.1
+
+
+@njit(cache=True, nogil=True)
+def _guided_members(owner, depth, step, r0, r1, c0, c1, target, weight):
+    """Which full-resolution pixels of rows r0:r1, columns c0:c1 take their label from a cell
+    of ``owner`` (the grid's mask numbers) numbered ``target``: each pixel takes the cell,
+    among the one holding it and that one's eight neighbours, whose depth (sampled where
+    ``coarse`` samples it) is nearest its own, plus ``weight`` per pixel of distance."""
+    gh, gw = owner.shape
+    out = np.zeros((r1 - r0, c1 - c0), np.bool_)
+    for r in range(r0, r1):
+        for c in range(c0, c1):
+            d = depth[r, c]
+            best, chosen = np.inf, 0
+            for dr in range(-1, 2):
+                for dc in range(-1, 2):
+                    gr, gc = r // step + dr, c // step + dc
+                    gr, gc = min(max(gr, 0), gh - 1), min(max(gc, 0), gw - 1)
+                    far = np.hypot(r - step * gr, c - step * gc)
+                    cost = abs(depth[gr * step, gc * step] - d) + weight * far
+                    if cost < best:
+                        best, chosen = cost, owner[gr, gc]
+            out[r - r0, c - c0] = chosen == target
+    return out
+
+
+def refined(masks: list[Mask2D], depth: np.ndarray, step: int, min_pixels: int = 1,
+            weight: float = GUIDE_DISTANCE) -> list[Mask2D]:  # fmt: skip
+    """Masks made on the segmenter's grid (one cell per ``step`` x ``step`` pixels), at the
+    frame's full resolution: each pixel joins the mask of the neighbouring cell whose depth
+    matches its own best (joint bilateral upsampling, guided by depth), so that a mask's edge
+    follows the object's silhouette rather than the grid's. Scores are kept; masks under
+    ``min_pixels`` are left out. On 400 val frames of the v2 segmenter, mask AP50 0.575
+    against 0.532 upsampled cell by cell, AP 0.393 against 0.297
+    (``docs/research/probes/guided_masks.py``)."""
+    d = np.ascontiguousarray(depth.reshape(depth.shape[:2]), dtype=np.float32)
+    h, w = d.shape
+    if not masks:
+        return []
+    owner = np.zeros(masks[0].mask.shape, np.int32)
+    for k, m in enumerate(masks, start=1):
+        m.paint(owner, k)
+    out = []
+    for k, m in enumerate(masks, start=1):
+        rows, cols = m.window
+        gr0, gr1 = (
+            max((rows.start or 0) - 1, 0),
+            min((rows.stop or owner.shape[0]) + 1, owner.shape[0]),
+        )
+        gc0, gc1 = (
+            max((cols.start or 0) - 1, 0),
+            min((cols.stop or owner.shape[1]) + 1, owner.shape[1]),
+        )
+        r0, r1, c0, c1 = gr0 * step, min(gr1 * step, h), gc0 * step, min(gc1 * step, w)
+        inside = _guided_members(owner, d, step, r0, r1, c0, c1, k, weight)
+        if inside.sum() < min_pixels:
+            continue
+        full = np.zeros((h, w), dtype=bool)
+        full[r0:r1, c0:c1] = inside
+        out.append(Mask2D(m.cls, full, m.score, (slice(r0, r1), slice(c0, c1))))
+    return out
+
+
 RELIEF_SCALE = 0.002  # metres: a mask this far in front of its ring's plane keeps 0.73 of its score
 
 

@@ -10,7 +10,8 @@ what it would read in the ground-truth track, made from the agent's own frame al
   each piece of furniture of the public floor plan (its id is public); and per pickupable type
   a block of slots for the objects this agent comes to track;
 - masks from the segmenter (``models/segmenter.py``), instances from masks split at depth
-  jumps (``perception/instances.py``), furniture named by the nearest piece of its type on the
+  jumps (``perception/instances.py``), objects' masks refined from the segmenter's grid to the
+  frame's pixels with depth's guidance, furniture named by the nearest piece of its type on the
   floor plan, objects associated across frames by type and position (``perception/tracks.py``);
 - ``held``: the slot of the object its last successful PickUp aimed at.
 
@@ -43,7 +44,7 @@ import numpy as np
 from scipy import ndimage
 
 from maniskill_tidy.envs.actions import MIN_PIXELS, NOTHING_DRAWN, Action, Targeted
-from maniskill_tidy.perception.instances import coarse, scored_by_relief, split_instances
+from maniskill_tidy.perception.instances import coarse, refined, scored_by_relief, split_instances
 from maniskill_tidy.perception.seg_classes import STRUCTURE, seg_classes
 from maniskill_tidy.perception.tracks import (
     Tracker,
@@ -74,6 +75,11 @@ FAILS = 2  # PickUps failed at a pixel of the frame (not for the distance) that 
 VERIFY_RANGE = 1.5
 MISSES = 2
 PIXELS_OBSERVATION = "rgb+depth"
+# The name of how pixels agents turn the segmenter's labels into what their team reads, once it
+# changed on purpose ("": as first played): pixels runs record it, a run begun under another
+# is not resumed, and the leaderboard marks it. "refined-masks": object masks refined to the
+# frame's pixels with depth's guidance (``instances.refined``), from 2026-12-06.
+PIXELS_PIPELINE = "refined-masks"
 # metres from a furniture mask's point: a second piece of its type this close, and the mask is
 # named cell by cell (one mask may cover both); else the whole mask is the nearest piece's
 SPLIT_RANGE = 2.0
@@ -233,9 +239,12 @@ class PixelsAgent(Agent):
 
     # ------------------------------------------------------------------ perception
     def _frame(self, obs: dict, step: int) -> np.ndarray:
-        """This frame's segmentation image in the agent's own ids. Masks are made, named and
-        tracked on the segmenter's grid (every other pixel: its labels' resolution), with the
-        depth and camera matrix of that grid, and the image upsampled by nearest neighbour."""
+        """This frame's segmentation image in the agent's own ids. Masks are made and named
+        on the segmenter's grid (every other pixel: its labels' resolution), with the depth and
+        camera matrix of that grid, and the image upsampled by nearest neighbour; object masks
+        are then refined to the frame's resolution with depth's guidance
+        (``instances.refined``: their edges follow the objects' silhouettes), and located and
+        tracked there."""
         c, table = self.table.classes, self.table
         rgb, depth = frame_arrays(obs)
         labels, probs = self.segmenter(self.name, rgb, depth)
@@ -245,20 +254,22 @@ class PixelsAgent(Agent):
         robot = c.index["robot"]
         K, E = coarse_intrinsics(obs["intrinsics"], grid), obs["extrinsics"]
         camera = camera_position(E)
-        objects = []
         start = time.perf_counter()
         masks = split_instances(labels, depth_g, self.instance_classes, probs,
                                 -(-MIN_PIXELS // grid**2))  # fmt: skip
         masks = scored_by_relief(masks, depth_g, self.object_classes)
+        keep = min(KEEP_THRESHOLD, self.segmenter.threshold)
+        found = refined([m for m in masks if c.is_pickupable(m.cls) and m.score >= keep],
+                        depth, grid, MIN_PIXELS)  # fmt: skip
         named = time.perf_counter()
         self.segmenter.seconds["instances"] += named - start
-        for m, p in zip(masks, mask_positions(masks, depth_g, K, E), strict=True):
+        objects = [(m, p) for m, p in zip(found, mask_positions(found, depth, obs["intrinsics"], E),
+                                          strict=True) if p is not None]  # fmt: skip
+        rest = [m for m in masks if not c.is_pickupable(m.cls)]
+        for m, p in zip(rest, mask_positions(rest, depth_g, K, E), strict=True):
             if p is None:
                 continue
-            if c.is_pickupable(m.cls):
-                if m.score >= min(KEEP_THRESHOLD, self.segmenter.threshold):
-                    objects.append((m, p))
-            elif m.cls == robot:
+            if m.cls == robot:
                 if np.hypot(*(p - camera)[:2]) > OWN_BODY:  # not its own base
                     m.paint(seg, table.structure[robot])
             else:
@@ -273,6 +284,7 @@ class PixelsAgent(Agent):
                 and t.missed_clear > t.seen_clear
             ):
                 self._refute(t.id)
+        seg = np.repeat(np.repeat(seg, grid, axis=0), grid, axis=1)
         for m, p, track in located:
             if track.id in self.refuted or track.sightings < CONFIRM:
                 continue  # still tracked, so its sightings stay explained
@@ -283,7 +295,7 @@ class PixelsAgent(Agent):
             self.in_frame[sid] = (m.cls, p)
         self.points = (depth, obs["intrinsics"], E)
         self.segmenter.seconds["labels"] += time.perf_counter() - named
-        return np.repeat(np.repeat(seg, grid, axis=0), grid, axis=1)
+        return seg
 
     def _paint_furniture(self, m, type_name: str, p, seg, depth, K, E) -> None:
         """Name a furniture mask by the floor plan: the piece of its type nearest it, or where
@@ -408,12 +420,13 @@ class PixelsAgent(Agent):
     def _pixel(self, sid: int | None, surface: str = "", fid: str = "") -> tuple[int, int]:
         """A pixel of ``sid``'s mask in this frame: nearest its middle, or for a surface, the
         one nearest where the surface's centre projects; (-1, -1) if it is not in view. Only
-        the pixels the labels were made at (a cell's first), and of those the mask's inner ones
-        where it has any: a cell's other pixels, and a mask's rim, may show what lies beside it
-        (an object on the table, the floor behind), where the env would find no target."""
+        the pixels the labels were made at (for furniture a cell's first, for an object any of
+        its refined mask), and of those the mask's inner ones where it has any: a cell's other
+        pixels, and a mask's rim, may show what lies beside it (an object on the table, the
+        floor behind), where the env would find no target."""
         if sid is None or self.seg is None:
             return (-1, -1)
-        g = self.grid
+        g = 1 if sid >= OBJECT_BASE else self.grid
         cells = self.seg[::g, ::g] == sid
         inner = ndimage.binary_erosion(cells)
         rows, cols = np.nonzero(inner if inner.any() else cells)

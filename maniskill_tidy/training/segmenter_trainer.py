@@ -42,6 +42,7 @@ from maniskill_tidy.models.segmenter import (
 from maniskill_tidy.perception.instances import (
     Mask2D,
     coarse,
+    refined,
     scored_by_relief,
     split_instances,
 )
@@ -156,8 +157,9 @@ def instance_pairs(
     model: Segmenter | Runtime, frames: dict, relabel=None
 ) -> tuple[list, list[int], np.ndarray]:
     """Per frame (truth, predicted instances) over the pickupable types, the instances made as
-    agents make them (on the network's grid, masks of ``MIN_PIXELS`` or more at the frames'
-    resolution: agents cannot act on smaller ones) and compared at the frames' resolution;
+    agents make them (on the network's grid, then refined to the frames' resolution with
+    depth's guidance, ``instances.refined``; masks of ``MIN_PIXELS`` or more: agents cannot
+    act on smaller ones) and compared at the frames' resolution;
     the pickupable classes and the predicted labels, upsampled. ``relabel(labels, probs,
     depth)``: a change to a frame's labels on the grid before its instances are made (probes)."""
     classes = seg_classes()
@@ -176,7 +178,7 @@ def instance_pairs(
         masks = scored_by_relief(split_instances(lab, grid, pickupable, probs[k], least),
                                  grid, pickupable)  # fmt: skip
         truth = truth_masks(frames["cls"][k], frames["instance"][k], pickupable)
-        pairs.append((truth, [m.upscaled(step) for m in masks]))
+        pairs.append((truth, refined(masks, depth[k], step, MIN_PIXELS)))
     return pairs, pickupable, upsample(labels, probs, depth.shape[1:3])[0]
 
 
