@@ -124,10 +124,13 @@ def test_predicted_masks_feed_a_heuristic_agents_map_and_replay(segmenter):
     assert agent.inner.map.explored.any()
 
 
-def test_a_pixels_run_is_not_resumed_with_other_segmenter_weights(segmenter, tmp_path, monkeypatch):
-    """Its episodes would mix two segmenters under the sha256 of the last: refused at once,
-    for the segmenter's sha256 alone (every other argument of the run.json the runner wrote
-    is the same)."""
+@pytest.mark.parametrize("key, before", [("segmenter_sha256", "0" * 64), ("pixels_pipeline", None)])
+def test_a_pixels_run_is_not_resumed_with_other_segmenter_weights_or_pipeline(
+    segmenter, tmp_path, monkeypatch, key, before
+):
+    """Its episodes would mix two segmenters under the sha256 of the last, or two ways of
+    reading its labels: refused at once, for that field alone (every other argument of the
+    run.json the runner wrote is the same; ``None``: a run from before the field)."""
     from maniskill_tidy.eval.runner import RunConfig, RunFile, evaluate, run_dir
 
     class Started(Exception):
@@ -146,9 +149,11 @@ def test_a_pixels_run_is_not_resumed_with_other_segmenter_weights(segmenter, tmp
     monkeypatch.undo()
     path = run_dir(tmp_path, cfg) / "run.json"
     started = json.loads(path.read_text())
-    sha = started["segmenter_sha256"]
-    path.write_text(json.dumps({**started, "segmenter_sha256": "0" * 64}))
-    diff = re.escape(str({"segmenter_sha256": ("0" * 64, sha)}))
+    now = started.pop(key)
+    if before is not None:
+        started[key] = before
+    path.write_text(json.dumps(started))
+    diff = re.escape(str({key: (before, now)}))
     with pytest.raises(ValueError, match=f"other arguments {diff} "):
         evaluate(cfg, tmp_path, workers=1, progress=False)
     assert not (path.parent / "episodes.jsonl").exists()

@@ -181,6 +181,9 @@ def test_refined_masks_follow_the_depth_silhouette_not_the_grid():
     obj, flat = refined(masks, depth, 2)
     assert np.array_equal(obj.mask, silhouette) and (obj.cls, obj.score) == (70, 0.9)
     assert obj.mask[obj.window].sum() == obj.mask.sum()  # its box holds it
+    assert np.array_equal(coarse(obj.mask, 2), cells)  # each cell's own pixel stays its own
+    with pytest.raises(ValueError, match="expected the grid of a"):
+        refined(masks, depth[:20], 2)
     assert np.array_equal(flat.mask, other.repeat(2, axis=0).repeat(2, axis=1))
     kept = refined(masks, depth, 2, min_pixels=20)  # the 16-pixel one left out
     assert len(kept) == 1 and np.array_equal(kept[0].mask, silhouette)

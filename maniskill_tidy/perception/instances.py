@@ -199,6 +199,9 @@ def refined(masks: list[Mask2D], depth: np.ndarray, step: int, min_pixels: int =
     h, w = d.shape
     if not masks:
         return []
+    if masks[0].mask.shape != coarse(d, step).shape:
+        raise ValueError(f"masks of {masks[0].mask.shape} cells: expected the grid of a "
+                         f"{d.shape} frame at step {step}, {coarse(d, step).shape}")  # fmt: skip
     owner = np.zeros(masks[0].mask.shape, np.int32)
     for k, m in enumerate(masks, start=1):
         m.paint(owner, k)

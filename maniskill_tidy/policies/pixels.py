@@ -76,9 +76,10 @@ VERIFY_RANGE = 1.5
 MISSES = 2
 PIXELS_OBSERVATION = "rgb+depth"
 # The name of how pixels agents turn the segmenter's labels into what their team reads, once it
-# changed on purpose ("": as first played): pixels runs record it, a run begun under another
-# is not resumed, and the leaderboard marks it. "refined-masks": object masks refined to the
-# frame's pixels with depth's guidance (``instances.refined``), from 2026-12-06.
+# changed on purpose (absent from a run's files: as first played): pixels runs record it, a
+# run begun under another is not resumed, and the leaderboard marks it. "refined-masks":
+# object masks refined to the frame's pixels with depth's guidance (``instances.refined``),
+# from 2026-12-06.
 PIXELS_PIPELINE = "refined-masks"
 # metres from a furniture mask's point: a second piece of its type this close, and the mask is
 # named cell by cell (one mask may cover both); else the whole mask is the nearest piece's

@@ -1,9 +1,10 @@
 """How the segmenter's masks miss objects, by size: per object of the renderer (``MIN_PIXELS``
 or more) on val frames, the best IoU of a mask of its type and of any type, whether that mask
 clears the agents' threshold, whether any mask touches it at all, and the share of its pixels
-labelled some pickupable type. Objects labelled as objects (0.8 of their pixels or more) that no
-mask covers at IoU 0.5 are split by why: the best mask spills over (its precision under 0.5),
-covers too little of it (recall under 0.5), or both.
+labelled some pickupable type. Masks as agents made them before ``refined-masks`` (each cell
+repeated; ``guided_masks.py`` measures the refinement). Objects labelled as objects (0.8 of
+their pixels or more) that no mask covers at IoU 0.5 are split by why: the best mask spills
+over (its precision under 0.5), covers too little of it (recall under 0.5), or both.
 
     .venv/bin/python docs/research/probes/mask_misses.py agents/segmenter-v2 \\
         --data data/segmenter/HeteroTidy-v2/val --frames 400

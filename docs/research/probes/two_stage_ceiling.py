@@ -4,7 +4,8 @@ calls 0.7-0.99 of most types' pixels some object, yet finds under half of them a
 this bounds what typing the masks again can give, with the renderer's types in place of the
 classifier (a perfect second stage), on the same val frames:
 
-- ``labels``: as agents make masks now (per predicted type, confidence the top-2 margin);
+- ``labels``: as agents made masks before ``refined-masks`` (per predicted type, each cell
+  repeated, confidence the top-2 margin);
 - ``labels, true type``: the same masks, each given the type of the object it overlaps most;
 - ``objects, majority type``: one mask per depth-continuous part of pixels labelled any
   pickupable type, typed by its commonest label, confidence the object-or-not margin;
