@@ -127,9 +127,11 @@ def test_a_pickup_aims_at_the_object_its_team_named_and_a_refuted_one_is_hidden(
     action = agent.act([])
     x, y = action.target
     assert action.action == Action.PickUp and 16 <= x < 24 and 16 <= y < 24
-    # a pixel the labels were made at (a cell's first), off the mask's rim: a rim cell's other
-    # pixels may show what lies beside the object
-    assert x % 2 == y % 2 == 0 and 18 <= x <= 20 and 18 <= y <= 20
+    # a pixel of its mask refined to the frame's pixels, off the rim (a rim pixel may show what
+    # lies beside the object), nearest its middle
+    inside = [agent.seg[y + dy, x + dx] == slot for dy, dx in ((0, 0), (0, 1), (1, 0), (0, -1),
+                                                               (-1, 0))]  # fmt: skip
+    assert all(inside) and 18 <= x <= 21 and 18 <= y <= 21
     # the env found no object at that pixel: a false detection, hidden from now on
     agent.observe(view(agent, 2, f"PickUp at pixel {(x, y)}: no object {NOTHING_DRAWN}"))
     assert slot not in shown(agent)

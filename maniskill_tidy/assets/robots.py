@@ -62,6 +62,11 @@ def _shaded(mesh: trimesh.Trimesh, look: dict) -> Part:
     """Flat across sharp edges, smooth elsewhere; the look as ``meshes.part_mesh`` reads it."""
     smooth = trimesh.graph.smooth_shade(mesh, angle=SHARP)
     m = trimesh.Trimesh(smooth.vertices, smooth.faces, process=False)
+    # components that should be 0 come out as +-1e-16 noise that differs between machines (the
+    # derived bytes with them): 0 they are
+    normals = m.vertex_normals.copy()
+    normals[np.abs(normals) < 1e-9] = 0.0
+    m.vertex_normals = normals
     full = {"image": None, "uv": None, "opacity": 1.0} | look
     return m, full | {"colour": np.asarray(look["colour"], dtype=np.float64)}
 
