@@ -622,3 +622,16 @@ def test_pixels_rows_get_their_own_table_paired_with_their_team_on_ground_truth(
     assert cells[1] == "HeteroTidy-v2" and cells[2] == f"its own look's ({shipped[:12]})"
     assert cells[3].startswith("0.400 [") and cells[4] == "0.800"
     assert cells[5].startswith("-0.400 [") and cells[6] == "0.50"
+
+
+def test_a_pixels_run_says_its_team_perceives_predicted_masks_not_ground_truth():
+    from maniskill_tidy.eval.runner import RunConfig, _perception
+    from maniskill_tidy.policies import team_class
+
+    team = team_class("heuristic-none")
+    assert "ground-truth segmentation" in team.perception
+    cfg = RunConfig("heuristic-none", "I", "test", None, segmentation="learned")
+    pixels = _perception(cfg, team)
+    assert pixels.startswith("learned segmenter from RGB-D (pixels track); ")
+    assert "ground-truth segmentation" not in pixels and "predicted masks" in pixels
+    assert _perception(RunConfig("heuristic-none", "I", "test", None), team) == team.perception

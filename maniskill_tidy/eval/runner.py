@@ -373,8 +373,7 @@ def _summary(
         "team": [list(c) for c in members],
         "communication": getattr(team_cls, "communication", "none"),
         "privileged": team_cls.privileged,
-        "perception": ("learned segmenter from RGB-D (pixels track); " if cfg.pixels else "")
-        + getattr(team_cls, "perception", ""),
+        "perception": _perception(cfg, team_cls),
         "dataset": cfg.dataset or "default (shipped with the package)",
         "dataset_hash": dataset_hash,
         "model_hash": config.get("model_hash"),  # a learned team's weights; None otherwise
@@ -391,6 +390,17 @@ def _summary(
         "episode_seconds_mean": round(float(np.mean([r.seconds for r in records])), 3),
         "central_endpoint": CENTRAL if getattr(team_cls, "central", False) else None,
     }
+
+
+def _perception(cfg: RunConfig, team_cls) -> str:
+    """What the team's agents perceive with; in the pixels track the team's own words, its
+    ground-truth segmentation replaced by the predicted masks (as ``PixelsTeam`` says it)."""
+    own = getattr(team_cls, "perception", "")
+    if not cfg.pixels:
+        return own
+    return "learned segmenter from RGB-D (pixels track); " + own.replace(
+        "ground-truth segmentation", "predicted masks"
+    )
 
 
 class RunFile:
