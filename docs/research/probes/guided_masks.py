@@ -20,13 +20,9 @@ from __future__ import annotations
 
 import numpy as np
 import segmenter_probe
-from objectness_confidence import logits_of
 
 from maniskill_tidy.envs.actions import MIN_PIXELS
-from maniskill_tidy.eval.mask_ap import mask_ap, score_threshold
 from maniskill_tidy.perception.instances import coarse, refined, scored_by_relief, split_instances
-from maniskill_tidy.perception.seg_classes import seg_classes
-from maniskill_tidy.training.segmenter_trainer import truth_masks
 
 
 def guided_labels(labels, probs, depth, step: int, weight: float):
@@ -52,32 +48,19 @@ def guided_labels(labels, probs, depth, step: int, weight: float):
 
 def main() -> None:
     args = segmenter_probe.arguments(__doc__)
-    c = seg_classes()
-    classes = [i for i in range(len(c.names)) if c.is_pickupable(i)]
-    frames = segmenter_probe.frames(args)
-    model = segmenter_probe.segmenter(args)[0]
-    depth = frames["depth_mm"].astype(np.float32) / 1000.0
-    labels, type_m, _ = logits_of(model, frames["rgb"], depth)
-    step = depth.shape[1] // labels.shape[1]
-    least = -(-MIN_PIXELS // step**2)
-    shape = depth.shape[1:3]
-
-    def on_grid(k):
-        grid = coarse(depth[k], step)
-        return scored_by_relief(
-            split_instances(labels[k], grid, classes, type_m[k], least), grid, classes
-        )
+    g = segmenter_probe.GridLogits.load(args)
+    step, depth, labels, type_m = g.step, g.depth, g.labels, g.type_margin
 
     def full(lab, prob, k):
         return scored_by_relief(
-            split_instances(lab, depth[k], classes, prob, MIN_PIXELS), depth[k], classes
+            split_instances(lab, depth[k], g.classes, prob, MIN_PIXELS), depth[k], g.classes
         )
 
     def repeated(a):
         return np.repeat(np.repeat(a, step, axis=0), step, axis=1)
 
     variants = {
-        "cells": lambda k: [m.upscaled(step) for m in on_grid(k)],
+        "cells": lambda k: [m.upscaled(step) for m in g.masks(k)],
         "cells, instances at full resolution": lambda k: full(
             repeated(labels[k]), repeated(type_m[k]), k
         ),
@@ -88,20 +71,11 @@ def main() -> None:
         )
     for w in (0.003, 0.01, 0.03, 0.1):
         variants[f"refined masks, {w}"] = lambda k, w=w: refined(
-            on_grid(k), depth[k], step, MIN_PIXELS, w
+            g.masks(k), depth[k], step, MIN_PIXELS, w
         )
     for name, made in variants.items():
-        pairs = [
-            (truth_masks(frames["cls"][k], frames["instance"][k], classes), made(k))
-            for k in range(len(labels))
-        ]
-        ap = mask_ap(pairs, classes, shape, ignore_below=MIN_PIXELS)
-        t = score_threshold(pairs, classes, shape, ignore_below=MIN_PIXELS)
-        print(
-            f"| {name} | {ap['AP50']:.3f} | {ap['AP']:.3f} | {ap['AP_small']:.3f} | "
-            f"{t['threshold']:.3f}: {t['f1']:.3f} ({t['precision']:.2f}, {t['recall']:.2f}) |",
-            flush=True,
-        )
+        pairs = [(g.truth(k), made(k)) for k in range(len(g))]
+        print(f"{name:36s} {segmenter_probe.scored(pairs, g.classes, g.shape)}", flush=True)
 
 
 if __name__ == "__main__":

@@ -17,12 +17,8 @@ from pathlib import Path
 
 import numpy as np
 import segmenter_probe
-from objectness_confidence import logits_of
 
 from maniskill_tidy.envs.actions import MIN_PIXELS
-from maniskill_tidy.perception.instances import coarse, scored_by_relief, split_instances
-from maniskill_tidy.perception.seg_classes import seg_classes
-from maniskill_tidy.training.segmenter_trainer import truth_masks
 
 SIZES = {"all": (MIN_PIXELS, np.inf), "20-100 px": (MIN_PIXELS, 100), "100-400 px": (100, 400),
          "400 px or more": (400, np.inf)}  # fmt: skip
@@ -56,25 +52,15 @@ def census(truth, masks, labels_full, pickupable) -> list[dict]:
 
 def main() -> None:
     args = segmenter_probe.arguments(__doc__)
-    c = seg_classes()
-    classes = [i for i in range(len(c.names)) if c.is_pickupable(i)]
     pickupable = segmenter_probe.pickupable_table()
     threshold = json.loads((Path(args.weights) / "card.json").read_text())["agent_threshold"]
     threshold = float(threshold["threshold"])
-    frames = segmenter_probe.frames(args)
-    model = segmenter_probe.segmenter(args)[0]
-    depth = frames["depth_mm"].astype(np.float32) / 1000.0
-    labels, type_m, _ = logits_of(model, frames["rgb"], depth)
-    step = depth.shape[1] // labels.shape[1]
-    least = -(-MIN_PIXELS // step**2)
+    g = segmenter_probe.GridLogits.load(args)
+    labels, step = g.labels, g.step
     rows = []
-    for k in range(len(labels)):
-        grid = coarse(depth[k], step)
-        masks = scored_by_relief(split_instances(labels[k], grid, classes, type_m[k], least),
-                                 grid, classes)  # fmt: skip
+    for k in range(len(g)):
         full = np.repeat(np.repeat(labels[k], step, axis=0), step, axis=1)
-        truth = truth_masks(frames["cls"][k], frames["instance"][k], classes)
-        rows += census(truth, [m.upscaled(step) for m in masks], full, pickupable)
+        rows += census(g.truth(k), [m.upscaled(step) for m in g.masks(k)], full, pickupable)
     print(
         f"{len(rows)} objects on {len(labels)} frames of {args.data}; agent threshold "
         f"{threshold:.3f}\n"
