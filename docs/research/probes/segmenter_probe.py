@@ -67,8 +67,7 @@ def logits_of(model: Segmenter, rgb: np.ndarray, depth: np.ndarray, batch: int =
     """Labels, type margins and object margins (sigmoids), on the network's grid: the type
     margin is what agents' masks are scored by (``LabelHead``), the object margin is between a
     pixel's best pickupable logit and its best other one (is it an object at all?)."""
-    c = seg_classes()
-    obj = torch.tensor([c.is_pickupable(i) and i > 0 for i in range(len(c.names))])
+    obj = torch.from_numpy(pickupable_table()[: len(seg_classes().names)])
     labels, type_m, obj_m = [], [], []
     with torch.inference_mode():
         for s in range(0, len(rgb), batch):
