@@ -112,16 +112,33 @@ def _play(segmenter, steps: int):
         env.close()
 
 
-def test_predicted_masks_feed_a_heuristic_agents_map_and_replay(segmenter):
+def test_predicted_masks_feed_a_heuristic_agents_map_and_replay(segmenter, monkeypatch):
+    """The inner team's map is fed each frame's predicted ids, and its voxels carry only the
+    labels of what was predicted. (How much a 3-epoch segmenter predicts varies with the
+    renders it trained on: the test asserts the wiring, not the segmenter's quality.)"""
+    from maniskill_tidy.perception.semantic_map import SemanticMap
+
+    fed, update = [], SemanticMap.update
+
+    def spy(self, obs):
+        fed.append((self, np.array(obs["segmentation"])))
+        return update(self, obs)
+
+    monkeypatch.setattr(SemanticMap, "update", spy)
     agent, obs, trace = _play(segmenter, 8)
+    monkeypatch.setattr(SemanticMap, "update", update)
     _, _, again = _play(segmenter, 8)
     assert trace == again  # same seed, same pixels team, same steps
     assert "segmentation" not in obs["agent_1"]
     ids = set(np.unique(agent.seg).tolist())
     assert ids - {0} and ids <= set(agent.table.instances) | {0}
-    voxels = agent.inner.map.voxels  # its map, built from the predicted ids' labels
-    assert agent.inner.map.frames == 8 and (voxels > 0).sum() > 100
-    assert agent.inner.map.explored.any()
+    own = agent.inner.map
+    segs = [seg for m, seg in fed if m is own]
+    assert own.frames == len(segs) == 8 and np.array_equal(segs[-1], agent.seg)
+    predicted = set(np.unique(own.labels[np.concatenate([s.ravel() for s in segs])]).tolist())
+    stored = set(np.unique(own.voxels).tolist()) - {0}
+    assert stored and stored <= predicted  # its map, built from the predicted ids' labels
+    assert own.explored.any()
 
 
 @pytest.mark.parametrize("key, before", [("segmenter_sha256", "0" * 64), ("pixels_pipeline", None)])
