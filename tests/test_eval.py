@@ -626,7 +626,8 @@ def test_pixels_rows_get_their_own_table_paired_with_their_team_on_ground_truth(
 
 def test_a_pixels_run_says_its_team_perceives_predicted_masks_not_ground_truth():
     from maniskill_tidy.eval.runner import RunConfig, _perception
-    from maniskill_tidy.policies import team_class
+    from maniskill_tidy.policies import make_team, team_class
+    from maniskill_tidy.policies.pixels import PixelsTeam
 
     team = team_class("heuristic-none")
     assert "ground-truth segmentation" in team.perception
@@ -635,3 +636,4 @@ def test_a_pixels_run_says_its_team_perceives_predicted_masks_not_ground_truth()
     assert pixels.startswith("learned segmenter from RGB-D (pixels track); ")
     assert "ground-truth segmentation" not in pixels and "predicted masks" in pixels
     assert _perception(RunConfig("heuristic-none", "I", "test", None), team) == team.perception
+    assert PixelsTeam(make_team("heuristic-none"), "agents/segmenter-v2").perception == pixels

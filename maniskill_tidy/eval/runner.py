@@ -37,7 +37,7 @@ from maniskill_tidy.eval.metrics import EpisodeRecord, summarize
 from maniskill_tidy.eval.pixels_losses import PixelsLosses
 from maniskill_tidy.policies import make_team, team_class
 from maniskill_tidy.policies.channel import CENTRAL
-from maniskill_tidy.policies.pixels import PIXELS_OBSERVATION, PIXELS_PIPELINE
+from maniskill_tidy.policies.pixels import PIXELS_OBSERVATION, PIXELS_PIPELINE, pixels_perception
 
 RECORD_MODES = ("none", "failures", "all")
 ALL_IMAGES = "rgb+depth+segmentation"
@@ -393,14 +393,9 @@ def _summary(
 
 
 def _perception(cfg: RunConfig, team_cls) -> str:
-    """What the team's agents perceive with; in the pixels track the team's own words, its
-    ground-truth segmentation replaced by the predicted masks (as ``PixelsTeam`` says it)."""
+    """What the team's agents perceive with (in the pixels track, as ``PixelsTeam`` says it)."""
     own = getattr(team_cls, "perception", "")
-    if not cfg.pixels:
-        return own
-    return "learned segmenter from RGB-D (pixels track); " + own.replace(
-        "ground-truth segmentation", "predicted masks"
-    )
+    return pixels_perception(own) if cfg.pixels else own
 
 
 class RunFile:

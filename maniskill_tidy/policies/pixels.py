@@ -457,6 +457,15 @@ class PixelsAgent(Agent):
         return self.inner.trace()
 
 
+def pixels_perception(own: str) -> str:
+    """A camera-only team's perception in the pixels track: its own words, its ground-truth
+    segmentation replaced by the predicted masks (the weights' sha256 is the run's
+    ``segmentation`` field)."""
+    return "learned segmenter from RGB-D (pixels track); " + own.replace(
+        "ground-truth segmentation", "predicted masks"
+    )
+
+
 class PixelsTeam(Team):
     """``inner`` (a camera-only team) in the pixels track, with the segmenter in ``weights``."""
 
@@ -471,9 +480,7 @@ class PixelsTeam(Team):
         self.name = inner.name
         for attr in ("communication", "central", "rounds", "team_override", "rules"):
             setattr(self, attr, getattr(inner, attr))
-        self.perception = f"learned segmenter {self.segmenter.sha256[:12]} (pixels track); " + (
-            inner.perception.replace("ground-truth segmentation", "predicted masks")
-        )
+        self.perception = pixels_perception(inner.perception)
 
     def make_agent(self, name: str, public: PublicInfo, outbox: Outbox) -> Agent:
         return PixelsAgent(self.inner.make_agent, name, public, outbox, self.segmenter)
