@@ -70,7 +70,7 @@ class Inner:
 
 @pytest.fixture
 def agent():
-    house = NS(furniture=[], furniture_by_id=lambda: {})
+    house = NS(furniture=[], rooms=[], walls=[], furniture_by_id=lambda: {})
     public = PublicInfo(house, ["agent_0"], [], "episode", 0)
     return PixelsAgent(Inner, "agent_0", public, None, FakeSegmenter())
 
@@ -222,7 +222,7 @@ def test_two_pieces_of_one_type_side_by_side_keep_their_own_pixels():
 
     left = Piece(id="CounterTop_0", type="CounterTop", box=(-3.0, -3.0, 0.0, 3.0))
     right = Piece(id="CounterTop_1", type="CounterTop", box=(0.0, -3.0, 3.0, 3.0))
-    house = NS(furniture=[left, right], furniture_by_id=lambda: {})
+    house = NS(furniture=[left, right], rooms=[], walls=[], furniture_by_id=lambda: {})
     agent = PixelsAgent(Inner, "agent_0", PublicInfo(house, ["agent_0"], [], "episode", 0),
                         None, FakeSegmenter())  # fmt: skip
     counter = seg_classes().index["furniture:CounterTop"]
@@ -252,7 +252,8 @@ def test_a_putdown_aims_where_the_named_surface_of_the_piece_projects():
     shelves = Piece(id="Shelf_0", type="ShelvingUnit", position=(0.3, 0.3, 0.0),
                     surfaces=[NS(name="top", center=(-0.8, -0.8, 2.0)),
                               NS(name="shelf_0", center=(0.2, 0.2, 2.0))])  # fmt: skip
-    house = NS(furniture=[shelves], furniture_by_id=lambda: {"Shelf_0": shelves})
+    house = NS(furniture=[shelves], rooms=[], walls=[],
+               furniture_by_id=lambda: {"Shelf_0": shelves})  # fmt: skip
     agent = PixelsAgent(Inner, "agent_0", PublicInfo(house, ["agent_0"], [], "episode", 0),
                         None, FakeSegmenter())  # fmt: skip
     unit = seg_classes().index["furniture:ShelvingUnit"]

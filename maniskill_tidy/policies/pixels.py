@@ -10,9 +10,12 @@ what it would read in the ground-truth track, made from the agent's own frame al
   each piece of furniture of the public floor plan (its id is public); and per pickupable type
   a block of slots for the objects this agent comes to track;
 - masks from the segmenter (``models/segmenter.py``), instances from masks split at depth
-  jumps (``perception/instances.py``), objects' masks refined from the segmenter's grid to the
-  frame's pixels with depth's guidance, furniture named by the nearest piece of its type on the
-  floor plan, objects associated across frames by type and position (``perception/tracks.py``);
+  jumps (``perception/instances.py``), furniture named by the nearest piece of its type on the
+  floor plan; objects' masks from what the floor plan does not explain (the pixels whose point
+  rests on a known surface or the floor, ``perception/object_space.py``), typed by the
+  segmenter's votes, and from the segmenter's own object masks where the plan explains the
+  pixels (flat objects), refined from its grid to the frame's pixels with depth's guidance;
+  objects associated across frames by type and position (``perception/tracks.py``);
 - ``held``: the slot of the object its last successful PickUp aimed at.
 
 Its PickUp and PutDown targets become a pixel of the current frame (the env resolves it,
@@ -44,7 +47,8 @@ import numpy as np
 from scipy import ndimage
 
 from maniskill_tidy.envs.actions import MIN_PIXELS, NOTHING_DRAWN, Action, Targeted
-from maniskill_tidy.perception.instances import coarse, refined, scored_by_relief, split_instances
+from maniskill_tidy.perception.instances import coarse, scored_by_relief, split_instances
+from maniskill_tidy.perception.object_space import ObjectSpace, frame_objects, unexplained
 from maniskill_tidy.perception.seg_classes import STRUCTURE, seg_classes
 from maniskill_tidy.perception.tracks import (
     Tracker,
@@ -79,8 +83,18 @@ PIXELS_OBSERVATION = "rgb+depth"
 # changed on purpose (absent from a run's files: as first played): pixels runs record it, a
 # run begun under another is not resumed, and the leaderboard marks it. "refined-masks":
 # object masks refined to the frame's pixels with depth's guidance (``instances.refined``),
-# from 2026-12-06.
-PIXELS_PIPELINE = "refined-masks"
+# from 2026-12-06; "floor-plan": objects' masks also from what the floor plan does not explain
+# (``perception/object_space.py``), typed by the segmenter's votes, from 2026-12-07.
+PIXELS_PIPELINE = "floor-plan"
+# A mask of what the floor plan does not explain starts a track at this score (the share of its
+# pixels the segmenter calls one pickupable type) and keeps one at the lower: the best-F1 score
+# of such masks on v2 val frames, and the same ratio to it as KEEP_THRESHOLD to the card's
+# (``docs/research/probes/floor_plan_masks.py``)
+PLAN_START = 0.45
+PLAN_KEEP = 0.35
+# a segmenter's object mask with this share of its cells unexplained by the floor plan is left
+# to the floor plan's mask there; the others (flat objects: a CD, a card) keep their own
+PLAN_COVERED = 0.5
 # metres from a furniture mask's point: a second piece of its type this close, and the mask is
 # named cell by cell (one mask may cover both); else the whole mask is the nearest piece's
 SPLIT_RANGE = 2.0
@@ -215,6 +229,9 @@ class PixelsAgent(Agent):
                                  or c.is_pickupable(i)]  # fmt: skip
         self.furniture_by_id = public.house.furniture_by_id()
         self.object_classes = [i for i in range(len(c.names)) if c.is_pickupable(i) and i]
+        self.pickupable = np.zeros(256, bool)
+        self.pickupable[self.object_classes] = True
+        self.space = ObjectSpace(public.house)
         pieces: dict[str, list] = {}
         for f in public.house.furniture:
             pieces.setdefault(f.type, []).append((f.id, f.footprint()))
@@ -243,9 +260,9 @@ class PixelsAgent(Agent):
         """This frame's segmentation image in the agent's own ids. Masks are made and named
         on the segmenter's grid (every other pixel: its labels' resolution), with the depth and
         camera matrix of that grid, and the image upsampled by nearest neighbour; object masks
-        are then refined to the frame's resolution with depth's guidance
-        (``instances.refined``: their edges follow the objects' silhouettes), and located and
-        tracked there."""
+        are made at the frame's resolution (``object_space.frame_objects``: what the floor
+        plan does not explain, and the segmenter's own masks refined with depth's guidance
+        where it does), and located and tracked there."""
         c, table = self.table.classes, self.table
         rgb, depth = frame_arrays(obs)
         labels, probs = self.segmenter(self.name, rgb, depth)
@@ -259,13 +276,21 @@ class PixelsAgent(Agent):
         masks = split_instances(labels, depth_g, self.instance_classes, probs,
                                 -(-MIN_PIXELS // grid**2))  # fmt: skip
         masks = scored_by_relief(masks, depth_g, self.object_classes)
-        keep = min(KEEP_THRESHOLD, self.segmenter.threshold)
-        found = refined([m for m in masks if c.is_pickupable(m.cls) and m.score >= keep],
-                        depth, grid, MIN_PIXELS)  # fmt: skip
+        free = unexplained(self.space, depth, obs["intrinsics"], E)
+        found, thresholds = frame_objects(
+            masks, free, depth, labels, probs, self.pickupable,
+            keep=min(KEEP_THRESHOLD, self.segmenter.threshold), start=self.segmenter.threshold,
+            plan_keep=PLAN_KEEP, plan_start=PLAN_START, covered=PLAN_COVERED,
+            min_pixels=MIN_PIXELS,
+        )  # fmt: skip
         named = time.perf_counter()
         self.segmenter.seconds["instances"] += named - start
-        objects = [(m, p) for m, p in zip(found, mask_positions(found, depth, obs["intrinsics"], E),
-                                          strict=True) if p is not None]  # fmt: skip
+        objects, starts = [], []
+        for m, p, t in zip(found, mask_positions(found, depth, obs["intrinsics"], E), thresholds,
+                           strict=True):  # fmt: skip
+            if p is not None:
+                objects.append((m, p))
+                starts.append(m.score >= t)
         rest = [m for m in masks if not c.is_pickupable(m.cls)]
         for m, p in zip(rest, mask_positions(rest, depth_g, K, E), strict=True):
             if p is None:
@@ -275,7 +300,6 @@ class PixelsAgent(Agent):
                     m.paint(seg, table.structure[robot])
             else:
                 self._paint_furniture(m, c.names[m.cls].split(":", 1)[1], p, seg, depth_g, K, E)
-        starts = [m.score >= self.segmenter.threshold for m, _ in objects]
         self.in_frame = {}
         located = self.tracker.update(objects, step, starts)
         for t in self.tracker.looked_at(step, depth_g, K, E, VERIFY_RANGE):

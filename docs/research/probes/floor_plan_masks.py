@@ -1,0 +1,122 @@
+"""Objects as what the floor plan does not explain (``perception/object_space.py``): how many
+of the val frames' objects do its masks find, typed by the segmenter's votes, against the
+segmenter's own masks? And which start score for them, beside the card's for the segmenter's
+masks, gives agents the best F1? Mask AP over the pickupable types (scores as each source
+gives them; for "as agents make them", the floor plan's masks' scores shifted by the card's
+threshold less ``PLAN_START`` so that one threshold ranks both), then the F1, precision and
+recall of the masks agents start tracks from, for a sweep of the floor plan's start score.
+
+The segmenter runs as agents run it (its int8 graph through ONNX Runtime); ``--per`` frames
+evenly spaced of each val house (the frames carry no task, the houses' floor plans come from
+the dataset the frames were rendered from).
+
+    .venv/bin/python docs/research/probes/floor_plan_masks.py agents/segmenter-v2 \\
+        --data data/segmenter/HeteroTidy-v2/val --dataset data/tidy120 --per 20
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+import segmenter_probe
+from tqdm import tqdm
+
+from maniskill_tidy.envs.actions import MIN_PIXELS
+from maniskill_tidy.models.checkpoints import served_segmenter
+from maniskill_tidy.models.object_typer import Typer
+from maniskill_tidy.perception.instances import (
+    Mask2D,
+    coarse,
+    refined,
+    scored_by_relief,
+    split_instances,
+)
+from maniskill_tidy.perception.object_space import (
+    ObjectSpace,
+    frame_objects,
+    object_masks,
+    unexplained,
+)
+from maniskill_tidy.policies.pixels import KEEP_THRESHOLD, PLAN_COVERED, PLAN_KEEP, PLAN_START
+from maniskill_tidy.tasks.dataset import load_dataset
+from maniskill_tidy.training.segmenter_trainer import truth_masks
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("weights", help="a trained segmenter's folder, e.g. agents/segmenter-v2")
+    ap.add_argument("--data", default=segmenter_probe.VAL, help="segmenter-data frames")
+    ap.add_argument("--dataset", default="data/tidy120", help="the houses they were rendered in")
+    ap.add_argument("--split", default="val")
+    ap.add_argument("--per", type=int, default=20, help="frames per house, evenly spaced")
+    ap.add_argument("--typer", help="a trained object typer's folder: it types the floor "
+                    "plan's masks instead of the segmenter's votes")  # fmt: skip
+    ap.add_argument("--starts", default="0.3,0.35,0.4,0.45,0.5,0.55,0.6",
+                    help="the floor plan's start scores to sweep")  # fmt: skip
+    args = ap.parse_args()
+    typer = Typer(args.typer) if args.typer else None
+    runtime, _, card = served_segmenter(args.weights, 2)
+    card_start = float(card["agent_threshold"]["threshold"])
+    keep = min(KEEP_THRESHOLD, card_start)
+    houses = load_dataset(Path(args.dataset), args.split).houses
+    pickupable = segmenter_probe.pickupable_table()
+    classes = [int(i) for i in np.nonzero(pickupable)[0]]
+    rows: dict[str, list] = {"segmenter's masks": [], "floor plan's masks": [],
+                             "as agents make them": []}  # fmt: skip
+    started: dict[float, list] = {float(t): [] for t in args.starts.split(",")}
+    shards = sorted(Path(args.data).glob("house_*.npz"))
+    for shard in tqdm(shards, desc="houses", unit="house"):
+        space = ObjectSpace(houses[shard.stem])
+        with np.load(shard) as z:
+            ks = np.linspace(0, len(z["rgb"]) - 1, args.per).round().astype(int)
+            frames = {k: z[k][ks] for k in ("rgb", "depth_mm", "cls", "instance",
+                                            "intrinsics", "extrinsics")}  # fmt: skip
+        depth = frames["depth_mm"].astype(np.float32) / 1000
+        labels, margins = runtime(frames["rgb"], depth)
+        for j in range(len(ks)):
+            d, lab, mar = depth[j], labels[j], margins[j]
+            grid = d.shape[0] // lab.shape[0]
+            d_g = coarse(d, grid)
+            masks = scored_by_relief(
+                split_instances(lab, d_g, classes, mar, -(-MIN_PIXELS // grid**2)), d_g, classes
+            )
+            truth = truth_masks(frames["cls"][j], frames["instance"][j], classes)
+            free = unexplained(space, d, frames["intrinsics"][j], frames["extrinsics"][j])
+            own = refined([m for m in masks if m.score >= keep], d, grid, MIN_PIXELS)
+            rows["segmenter's masks"].append((truth, own))
+            rgb, focal = frames["rgb"][j], float(frames["intrinsics"][j][0, 0])
+            plan = object_masks(free, d, lab, mar, pickupable, MIN_PIXELS, typer, rgb, focal)
+            rows["floor plan's masks"].append((truth, plan))
+            found, starts = frame_objects(
+                masks, free, d, lab, mar, pickupable, keep, card_start,
+                PLAN_KEEP, PLAN_START, PLAN_COVERED, MIN_PIXELS, typer, rgb, focal,
+            )  # fmt: skip
+            shift = card_start - PLAN_START
+            rows["as agents make them"].append((truth, [
+                Mask2D(m.cls, m.mask, m.score + (shift if s == PLAN_START else 0.0), m.box)
+                for m, s in zip(found, starts, strict=True)
+            ]))  # fmt: skip
+            every, kinds = frame_objects(masks, free, d, lab, mar, pickupable, keep, card_start,
+                                         0.0, -1.0, PLAN_COVERED, MIN_PIXELS, typer, rgb,
+                                         focal)  # fmt: skip
+            for t, pairs in started.items():
+                pairs.append((truth, [
+                    Mask2D(m.cls, m.mask, 1.0, m.box) for m, kind in zip(every, kinds, strict=True)
+                    if m.score >= (t if kind < 0 else card_start)
+                ]))  # fmt: skip
+    shape = depth.shape[1:3]
+    print(f"{len(rows['as agents make them'])} frames of {len(shards)} houses")
+    for name, pairs in rows.items():
+        print(f"{name:24s} {segmenter_probe.scored(pairs, classes, shape)}")
+    print(
+        f"tracks start: the segmenter's masks at the card's {card_start:.3f}, the floor plan's at"
+    )
+    for t, pairs in started.items():
+        line = segmenter_probe.scored(pairs, classes, shape).split("|")[1]
+        print(f"  {t:.2f}: {line.split(':', 1)[1].strip()}")
+
+
+if __name__ == "__main__":
+    main()
