@@ -182,25 +182,15 @@ def _unexplained(d, fx, fy, cx, cy, pose, origin, cell, lo, hi):
 
 
 def object_masks(unexplained_px: np.ndarray, depth: np.ndarray, labels: np.ndarray,
-                 margins: np.ndarray, pickupable: np.ndarray, min_pixels: int,
-                 typer=None, rgb: np.ndarray | None = None,
-                 focal: float = 0.0) -> list[Mask2D]:  # fmt: skip
+                 margins: np.ndarray, pickupable: np.ndarray,
+                 min_pixels: int) -> list[Mask2D]:  # fmt: skip
     """One mask per part of the unexplained pixels with no depth jump inside, typed by the
     segmenter's votes: the pickupable label its pixels carry most (each vote weighted by the
     label's margin), scored by the share of its pixels labelled some pickupable type times
     that type's share of their votes. ``labels`` and ``margins`` are on the segmenter's grid
-    (a whole divisor of the frame's size); ``pickupable``: label -> bool. With a ``typer``
-    (``models/object_typer.py: Typer``, which reads ``rgb`` and the camera's ``focal``
-    length), each part is typed and scored by it instead: its likeliest type and that type's
-    probability, against every type and "not an object"."""
+    (a whole divisor of the frame's size); ``pickupable``: label -> bool."""
     step = depth.shape[0] // labels.shape[0]
     parts = split_instances(unexplained_px.astype(np.uint8), depth, [1], None, min_pixels)
-    if typer is not None:
-        if not parts:
-            return []
-        cls, score = typer(parts, rgb, depth, focal, labels, margins)
-        return [Mask2D(int(c), m.mask, float(p), m.box)
-                for m, c, p in zip(parts, cls, score, strict=True)]  # fmt: skip
     out = []
     for m in parts:
         w = m.window
@@ -219,7 +209,6 @@ def object_masks(unexplained_px: np.ndarray, depth: np.ndarray, labels: np.ndarr
 def frame_objects(masks: list[Mask2D], free: np.ndarray, depth: np.ndarray, labels: np.ndarray,
                   margins: np.ndarray, pickupable: np.ndarray, keep: float, start: float,
                   plan_keep: float, plan_start: float, covered: float, min_pixels: int,
-                  typer=None, rgb: np.ndarray | None = None, focal: float = 0.0,
                   ) -> tuple[list[Mask2D], list[float]]:  # fmt: skip
     """A pixels agent's object masks of one frame, at its resolution, and the score each needs
     to start a track: the masks of what the floor plan does not explain (``free``, typed by
@@ -228,8 +217,7 @@ def frame_objects(masks: list[Mask2D], free: np.ndarray, depth: np.ndarray, labe
     objects within :data:`RISE` of their surface), refined to the frame's pixels and cut to
     the explained ones, so that no two masks overlap."""
     grid = depth.shape[0] // labels.shape[0]
-    plan = [m for m in object_masks(free, depth, labels, margins, pickupable, min_pixels,
-                                    typer, rgb, focal)
+    plan = [m for m in object_masks(free, depth, labels, margins, pickupable, min_pixels)
             if m.score >= plan_keep]  # fmt: skip
     free_g = coarse(free, grid)
     own = [m for m in masks if pickupable[m.cls] and m.score >= keep

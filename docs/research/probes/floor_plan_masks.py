@@ -25,7 +25,6 @@ from tqdm import tqdm
 
 from maniskill_tidy.envs.actions import MIN_PIXELS
 from maniskill_tidy.models.checkpoints import served_segmenter
-from maniskill_tidy.models.object_typer import Typer
 from maniskill_tidy.perception.instances import (
     Mask2D,
     coarse,
@@ -51,12 +50,9 @@ def main() -> None:
     ap.add_argument("--dataset", default="data/tidy120", help="the houses they were rendered in")
     ap.add_argument("--split", default="val")
     ap.add_argument("--per", type=int, default=20, help="frames per house, evenly spaced")
-    ap.add_argument("--typer", help="a trained object typer's folder: it types the floor "
-                    "plan's masks instead of the segmenter's votes")  # fmt: skip
     ap.add_argument("--starts", default="0.3,0.35,0.4,0.45,0.5,0.55,0.6",
                     help="the floor plan's start scores to sweep")  # fmt: skip
     args = ap.parse_args()
-    typer = Typer(args.typer) if args.typer else None
     runtime, _, card = served_segmenter(args.weights, 2)
     card_start = float(card["agent_threshold"]["threshold"])
     keep = min(KEEP_THRESHOLD, card_start)
@@ -86,12 +82,11 @@ def main() -> None:
             free = unexplained(space, d, frames["intrinsics"][j], frames["extrinsics"][j])
             own = refined([m for m in masks if m.score >= keep], d, grid, MIN_PIXELS)
             rows["segmenter's masks"].append((truth, own))
-            rgb, focal = frames["rgb"][j], float(frames["intrinsics"][j][0, 0])
-            plan = object_masks(free, d, lab, mar, pickupable, MIN_PIXELS, typer, rgb, focal)
+            plan = object_masks(free, d, lab, mar, pickupable, MIN_PIXELS)
             rows["floor plan's masks"].append((truth, plan))
             found, starts = frame_objects(
                 masks, free, d, lab, mar, pickupable, keep, card_start,
-                PLAN_KEEP, PLAN_START, PLAN_COVERED, MIN_PIXELS, typer, rgb, focal,
+                PLAN_KEEP, PLAN_START, PLAN_COVERED, MIN_PIXELS,
             )  # fmt: skip
             shift = card_start - PLAN_START
             rows["as agents make them"].append((truth, [
@@ -99,8 +94,7 @@ def main() -> None:
                 for m, s in zip(found, starts, strict=True)
             ]))  # fmt: skip
             every, kinds = frame_objects(masks, free, d, lab, mar, pickupable, keep, card_start,
-                                         0.0, -1.0, PLAN_COVERED, MIN_PIXELS, typer, rgb,
-                                         focal)  # fmt: skip
+                                         0.0, -1.0, PLAN_COVERED, MIN_PIXELS)  # fmt: skip
             for t, pairs in started.items():
                 pairs.append((truth, [
                     Mask2D(m.cls, m.mask, 1.0, m.box) for m, kind in zip(every, kinds, strict=True)
