@@ -633,7 +633,7 @@ def test_a_pixels_run_says_its_team_perceives_predicted_masks_not_ground_truth()
     assert "ground-truth segmentation" in team.perception
     cfg = RunConfig("heuristic-none", "I", "test", None, segmentation="learned")
     pixels = _perception(cfg, team)
-    assert pixels.startswith("learned segmenter from RGB-D (pixels track); ")
+    assert pixels.startswith("learned segmenter from RGB-D and the floor plan (pixels track); ")
     assert "ground-truth segmentation" not in pixels and "predicted masks" in pixels
     assert _perception(RunConfig("heuristic-none", "I", "test", None), team) == team.perception
     assert PixelsTeam(make_team("heuristic-none"), "agents/segmenter-v2").perception == pixels

@@ -485,7 +485,7 @@ def pixels_perception(own: str) -> str:
     """A camera-only team's perception in the pixels track: its own words, its ground-truth
     segmentation replaced by the predicted masks (the weights' sha256 is the run's
     ``segmentation`` field)."""
-    return "learned segmenter from RGB-D (pixels track); " + own.replace(
+    return "learned segmenter from RGB-D and the floor plan (pixels track); " + own.replace(
         "ground-truth segmentation", "predicted masks"
     )
 
