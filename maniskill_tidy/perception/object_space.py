@@ -7,9 +7,9 @@ floor clear of every piece and wall, is something the floor plan does not hold: 
 a robot). This is change detection against a known map, as a robot with a map of its home
 would do it; it finds the extent of objects too small or too plain for the segmenter, whose
 types then name them (:func:`object_masks`). On 400 v2 val frames (``docs/research/probes/
-floor_plan_masks.py``) such masks, typed by the segmenter's votes, find 0.59 of the objects at
-their best-F1 threshold against 0.52 for the segmenter's own masks (AP small 0.43 against
-0.30).
+floor_plan_masks.py``, the int8 graph) such masks, typed by the segmenter's votes, find 0.57
+of the objects at their best-F1 score against 0.50 for the segmenter's own masks (AP small 0.41
+against 0.29).
 
 Approximations, named: the renderer's depth is exact to its millimetre quantisation, which
 lets a 5 mm rise above a surface count (a real depth camera's noise would need more); the
@@ -37,8 +37,8 @@ WALL_MARGIN = 0.03  # metres beyond a wall's half thickness: skirting, the mesh'
 
 class ObjectSpace:
     """Per cell of the floor plan's raster, the heights where an object may be that the plan
-    does not explain: intervals ``lo[k] < z < hi[k]`` (``k`` over the surfaces stacked there,
-    the floor among them; empty slots hold lo = inf)."""
+    does not explain: intervals ``lo[row, col, k] < z < hi[row, col, k]`` (``k`` over the
+    surfaces stacked there, the floor among them; empty slots hold lo = inf)."""
 
     def __init__(self, house: House, cell: float = CELL) -> None:
         corners = np.array([p for r in house.rooms for p in r.polygon], float).reshape(-1, 2)
@@ -50,9 +50,9 @@ class ObjectSpace:
         self.hi = np.full((1, *self.shape), -np.inf, np.float32)
         if len(corners):
             self._build(house)
-        # (rows, cols, slots), each cell's slots side by side for the compiled lookup
-        self.cells_lo = np.ascontiguousarray(self.lo.transpose(1, 2, 0))
-        self.cells_hi = np.ascontiguousarray(self.hi.transpose(1, 2, 0))
+        # built slot by slot, kept (rows, cols, slots): a cell's slots side by side for the lookup
+        self.lo = np.ascontiguousarray(self.lo.transpose(1, 2, 0))
+        self.hi = np.ascontiguousarray(self.hi.transpose(1, 2, 0))
 
     def _build(self, house: House) -> None:
         cell = self.cell
@@ -134,12 +134,9 @@ class ObjectSpace:
 
     def contains(self, points: np.ndarray) -> np.ndarray:
         """Per world point (N, 3): whether it lies where the floor plan explains nothing."""
-        col = np.floor((points[:, 0] - self.origin[0]) / self.cell).astype(np.int64)
-        row = np.floor((points[:, 1] - self.origin[1]) / self.cell).astype(np.int64)
-        ok = (row >= 0) & (row < self.shape[0]) & (col >= 0) & (col < self.shape[1])
-        row, col = np.where(ok, row, 0), np.where(ok, col, 0)
-        z = points[:, 2].astype(np.float32)
-        return ok & np.any((self.lo[:, row, col] < z) & (z < self.hi[:, row, col]), axis=0)
+        p = np.asarray(points, np.float64).reshape(-1, 3)
+        return np.array([_free(x, y, z, self.origin.astype(np.float64), self.cell,
+                               self.lo, self.hi) for x, y, z in p], bool)  # fmt: skip
 
 
 def _overlap(a: tuple[slice, slice], b: tuple[slice, slice]) -> bool:
@@ -153,13 +150,12 @@ def unexplained(space: ObjectSpace, depth: np.ndarray, intrinsics, extrinsics) -
     fx, fy, cx, cy = open3d_intrinsics(intrinsics).astype(np.float64)
     pose = open3d_pose(extrinsics).astype(np.float64)
     return _unexplained(d, fx, fy, cx, cy, pose, space.origin.astype(np.float64), space.cell,
-                        space.cells_lo, space.cells_hi)  # fmt: skip
+                        space.lo, space.hi)  # fmt: skip
 
 
 @njit(cache=True, nogil=True)
 def _unexplained(d, fx, fy, cx, cy, pose, origin, cell, lo, hi):
     h, w = d.shape
-    rows, cols, slots = lo.shape
     out = np.zeros((h, w), np.bool_)
     for r in range(h):
         for c in range(w):
@@ -170,15 +166,22 @@ def _unexplained(d, fx, fy, cx, cy, pose, origin, cell, lo, hi):
             x = pose[0, 0] * px + pose[0, 1] * py + pose[0, 2] * z + pose[0, 3]
             y = pose[1, 0] * px + pose[1, 1] * py + pose[1, 2] * z + pose[1, 3]
             height = pose[2, 0] * px + pose[2, 1] * py + pose[2, 2] * z + pose[2, 3]
-            gc = int(np.floor((x - origin[0]) / cell))
-            gr = int(np.floor((y - origin[1]) / cell))
-            if gr < 0 or gr >= rows or gc < 0 or gc >= cols:
-                continue
-            for k in range(slots):
-                if lo[gr, gc, k] < height < hi[gr, gc, k]:
-                    out[r, c] = True
-                    break
+            out[r, c] = _free(x, y, height, origin, cell, lo, hi)
     return out
+
+
+@njit(cache=True, nogil=True)
+def _free(x, y, height, origin, cell, lo, hi) -> bool:
+    """Whether a world point lies in one of its raster cell's intervals."""
+    rows, cols, slots = lo.shape
+    gc = int(np.floor((x - origin[0]) / cell))
+    gr = int(np.floor((y - origin[1]) / cell))
+    if gr < 0 or gr >= rows or gc < 0 or gc >= cols:
+        return False
+    for k in range(slots):
+        if lo[gr, gc, k] < height < hi[gr, gc, k]:
+            return True
+    return False
 
 
 def object_masks(unexplained_px: np.ndarray, depth: np.ndarray, labels: np.ndarray,
