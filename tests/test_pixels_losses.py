@@ -33,7 +33,7 @@ def _world():
                           1025: Instance(1025, "object", "Apple", "Apple#1"),
                           1026: Instance(1026, "object", "Apple", "Apple#2"),
                           16: Instance(16, "furniture", "Table", "Table_0")})  # fmt: skip
-    agent = NS(seg=None, table=table)
+    agent = NS(seg=None, table=table, aimed=1026)
     return env, agent
 
 
@@ -65,6 +65,7 @@ def test_fates_tracks_merges_and_false_pickups():
     assert fates["Cup"]["fate"] == "never in view"
     assert fates["Book"]["fate"] == "placed"
     assert out["false_pickups"] == 1
+    assert out["in_place_picked"] == [{"type": "Plate", "believed": "Apple"}]
     assert fates["Apple"]["largest_view"] == 100 and fates["Cup"]["largest_view"] == 0
 
     summary = summarise([{"pixels": out}, {"success": True}])  # ground-truth records: no key
@@ -74,6 +75,7 @@ def test_fates_tracks_merges_and_false_pickups():
     assert summary["split_into_tracks"] == 1 and summary["merged_with_another"] == 1
     assert summary["by_type"]["Mug"] == {"wrong type": 1}
     assert summary["median_largest_view"]["wrong type"] == 100
+    assert summary["in_place_picked_as"] == {"another type": 1}
 
 
 def test_an_object_in_view_without_a_mask_is_never_detected():

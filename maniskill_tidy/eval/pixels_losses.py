@@ -20,7 +20,10 @@ never detected though seen large is the segmenter's loss, one only seen far off 
 Per object also: how many of an agent's tracks (slots) it was seen as (``tracks`` > 1: one
 object split into several), and whether a slot that covered it also covered another object,
 misplaced or not, with a quarter of its pixels (``merged``). Per episode: ``false_pickups``,
-objects already in place that an agent picked up.
+objects already in place that an agent picked up, and for each (``in_place_picked``) its type
+and the type of the slot the agent aimed at (``believed``): its own type means the agent judged
+where it rests wrong (or remembered it elsewhere), another that the segmenter's vote misnamed
+it, into a type not allowed there.
 """
 
 from __future__ import annotations
@@ -59,6 +62,8 @@ class PixelsLosses:
         self.covers: dict[tuple, set[str]] = defaultdict(set)  # (agent, slot) -> objects
         self.held = {a.name: a.held for a in env.agents}
         self.false_pickups = 0
+        self.in_place_picked: list[dict] = []
+        self.type_by_id = {i.id: i.type for i in env.instances.values() if i.kind == "object"}
         self.agents: dict = {}
         self.truth: dict[str, np.ndarray] = {}
 
@@ -103,6 +108,10 @@ class PixelsLosses:
         for a in self.env.agents:
             if a.held and a.held != self.held[a.name] and a.held not in self.misplaced:
                 self.false_pickups += 1
+                agent = self.agents.get(a.name)
+                inst = agent.table.instances.get(getattr(agent, "aimed", None)) if agent else None
+                self.in_place_picked.append({"type": self.type_by_id.get(a.held),
+                                             "believed": inst.type if inst else None})  # fmt: skip
             self.held[a.name] = a.held
 
     def result(self) -> dict:
@@ -126,7 +135,8 @@ class PixelsLosses:
             objects.append({"type": self.type_of[oid], "fate": fate,
                             "tracks": len(self.slots[oid]), "merged": merged,
                             "largest_view": self.largest[oid]})  # fmt: skip
-        return {"objects": objects, "false_pickups": self.false_pickups}
+        return {"objects": objects, "false_pickups": self.false_pickups,
+                "in_place_picked": self.in_place_picked}
 
 
 def summarise(records: list[dict]) -> dict:
@@ -135,9 +145,12 @@ def summarise(records: list[dict]) -> dict:
     by_type: dict[str, Counter] = defaultdict(Counter)
     split = merged = false_pickups = 0
     views: dict[str, list[int]] = defaultdict(list)  # fate -> largest views
+    beliefs: Counter = Counter()  # in place picked up: taken for its own type, or another
     for r in records:
         losses = r.get("pixels") or {}
         false_pickups += losses.get("false_pickups", 0)
+        for p in losses.get("in_place_picked", []):  # records before the field have none
+            beliefs["its own type" if p["believed"] == p["type"] else "another type"] += 1
         for o in losses.get("objects", []):
             fates[o["fate"]] += 1
             by_type[o["type"]][o["fate"]] += 1
@@ -148,8 +161,15 @@ def summarise(records: list[dict]) -> dict:
     return {"objects": sum(fates.values()), "fates": {f: fates[f] for f in FATES},
             "by_type": {t: dict(c) for t, c in sorted(by_type.items())},
             "split_into_tracks": split, "merged_with_another": merged,
-            "false_pickups": false_pickups, "episodes": len(records),
+            "false_pickups": false_pickups, "in_place_picked_as": dict(beliefs),
+            "episodes": len(records),
             "median_largest_view": {f: int(np.median(v)) for f, v in views.items()}}  # fmt: skip
+
+
+def _as_what(beliefs: dict) -> str:
+    if not beliefs:
+        return ""
+    return " (" + ", ".join(f"{n} taken for {b}" for b, n in sorted(beliefs.items())) + ")"
 
 
 def losses_table(summary: dict, top: int = 12) -> str:
@@ -158,7 +178,8 @@ def losses_table(summary: dict, top: int = 12) -> str:
     lines = [f"{summary['objects']} misplaced objects in {summary['episodes']} episodes; "
              f"{summary['split_into_tracks']} seen as several tracks by one agent, "
              f"{summary['merged_with_another']} in a mask with another object; "
-             f"{summary['false_pickups']} objects in place picked up", "",
+             f"{summary['false_pickups']} objects in place picked up"
+             + _as_what(summary.get("in_place_picked_as", {})), "",
              "| fate | objects | share | median of its largest view (px) |",
              "|---|---:|---:|---:|"]  # fmt: skip
     views = summary.get("median_largest_view", {})
