@@ -1,6 +1,6 @@
 """What the pixels-team probes share: their command line (a camera-only team, the dataset, the
-segmenter, how many Setting I test episodes in v2, whose labels agents get) and the loop that
-plays each episode with a fresh observer.
+segmenter, how many Setting I episodes in v2 and of which split, whose labels agents get) and
+the loop that plays each episode with a fresh observer.
 
 ``--labels renderer`` feeds every agent the renderer's classes in place of the segmenter's
 (:class:`TruthLabels`): a perfect segmenter, with the rest of the pixels pipeline unchanged."""
@@ -23,6 +23,8 @@ def arguments(doc: str, policy: str, episodes: int) -> argparse.Namespace:
     ap.add_argument("--dataset", default="data/tidy120")
     ap.add_argument("--segmentation", default="learned")
     ap.add_argument("--episodes", type=int, default=episodes)
+    ap.add_argument("--split", default="test", choices=("train", "val", "test"),
+                    help="val to choose what to change, test to report")  # fmt: skip
     ap.add_argument(
         "--labels",
         choices=("segmenter", "renderer"),
@@ -55,7 +57,7 @@ class TruthLabels:
 
 def played(args: argparse.Namespace, observer: Callable[[], object]) -> Iterator[tuple]:
     """Each chosen episode's record and its observer, as ``eval`` chooses and plays them."""
-    cfg = RunConfig(args.policy, "I", "test", args.dataset, args.episodes,
+    cfg = RunConfig(args.policy, "I", args.split, args.dataset, args.episodes,
                     env="HeteroTidy-v2", segmentation=args.segmentation)  # fmt: skip
     env, team = make_env(cfg), make_run_team(cfg)
     try:

@@ -5,17 +5,20 @@ and judged it misplaced, whether a manipulator took a job to fetch it, and how i
 ended. Tells "the team never knew it was misplaced" from "it went for it and failed".
 
     .venv/bin/python docs/research/probes/pixels_unpicked.py --policy memory \\
-        --dataset data/tidy120 --episodes 12
+        --dataset data/tidy120 --episodes 12 [--split val]
 """
 
 from __future__ import annotations
 
 from collections import Counter, defaultdict
 
+import numpy as np
 import pixels_probe
 
 from maniskill_tidy.envs.actions import Action, Targeted
 from maniskill_tidy.eval.pixels_losses import PixelsLosses
+
+NEAR = 0.5  # metres from an object: a teammate's report this close is of it
 
 
 class Unpicked(PixelsLosses):
@@ -37,6 +40,8 @@ class Unpicked(PixelsLosses):
                 inner, slot_id = agent.inner, agent.table.instances[sid].id
                 manip = "manipulator" if inner.manipulator else "other"
                 self.flags[oid].add(f"shown to a {manip}")
+                if agent.table.instances[sid].type == self.type_of[oid]:
+                    self.flags[oid].add(f"shown to a {manip} as its type")
                 known = inner.objects.get(slot_id)
                 if known is not None:
                     self.flags[oid].add(f"in a {manip}'s memory")
@@ -50,6 +55,19 @@ class Unpicked(PixelsLosses):
                     if agent.aimed == sid:
                         self.aimed[name] = oid
 
+        for agent in self.agents.values():  # what teammates' messages told manipulators
+            inner = agent.inner
+            if not inner.manipulator:
+                continue
+            for oid in self.misplaced:
+                xy = np.asarray(self.env.hs.object_bottom(oid))[:2]
+                for r, how in [(r, "reported") for r in inner.reports] + [
+                    (r, "report dismissed") for r in inner.dismissed
+                ]:
+                    if np.hypot(*(np.asarray(r.xy) - xy)) < NEAR:
+                        same = "its type" if r.type == self.type_of[oid] else "another type"
+                        self.flags[oid].add(f"{how} to a manipulator as {same}")
+
     def log_step(self, t, obs, actions, info, channel, labels) -> None:
         super().log_step(t, obs, actions, info, channel, labels)
         for name, oid in self.aimed.items():
@@ -59,6 +77,7 @@ class Unpicked(PixelsLosses):
 
 STAGES = (
     "shown to a manipulator",
+    "shown to a manipulator as its type",
     "in a manipulator's memory",
     "judged misplaced by a manipulator",
     "a manipulator's pick job",
