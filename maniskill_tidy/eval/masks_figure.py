@@ -4,7 +4,9 @@
 steps of an episode with the expert (it walks to the misplaced objects), keeps each agent's
 frame that shows the most pickupable pixels, and draws per agent: the RGB frame, the renderer's
 classes and the segmenter's, pickupable objects named where they are (instances as agents make
-them, ``perception/instances.py``).
+them, ``perception/instances.py``), and the object masks a pixels agent would start tracks from
+(``policies/pixels.py: find_masks``: what the floor plan does not explain, typed by the
+segmenter's votes, and the segmenter's own masks of flat objects).
 """
 
 from __future__ import annotations
@@ -32,15 +34,18 @@ def palette() -> np.ndarray:
     return colours
 
 
-def overlay(rgb: np.ndarray, labels: np.ndarray, alpha: float = 0.6) -> np.ndarray:
-    c = palette()[labels]
-    return (1 - alpha) * rgb / 255.0 + alpha * c
+def overlay(rgb: np.ndarray, labels: np.ndarray, alpha: float = 0.6,
+            masked_only: bool = False) -> np.ndarray:  # fmt: skip
+    """The frame with each pixel tinted its label's colour (``masked_only``: labels > 0)."""
+    a = alpha * (labels > 0)[..., None] if masked_only else alpha
+    return (1 - a) * rgb / 255.0 + a * palette()[labels]
 
 
-def _name_objects(ax, labels: np.ndarray, depth: np.ndarray) -> None:
+def _name_objects(ax, labels: np.ndarray, depth: np.ndarray, masks=None) -> None:
+    """Name each object mask above it: ``masks``, else the instances of ``labels``."""
     c = seg_classes()
     pickupable = [i for i in range(len(c.names)) if c.is_pickupable(i)]
-    for m in split_instances(labels, depth, pickupable):
+    for m in split_instances(labels, depth, pickupable) if masks is None else masks:
         if m.area < 20:
             continue
         rows, cols = np.nonzero(m.mask)
@@ -62,7 +67,9 @@ def masks_figure(out: Path, segmenter: str, env_id: str = "HeteroTidy-v2",
     from maniskill_tidy.eval.episode import Execution
     from maniskill_tidy.models.checkpoints import served_segmenter
     from maniskill_tidy.models.segmenter import upsample
+    from maniskill_tidy.perception.object_space import ObjectSpace
     from maniskill_tidy.policies import make_team
+    from maniskill_tidy.policies.pixels import find_masks
 
     runtime, _, card = served_segmenter(segmenter, 2)  # what agents run
     classes = seg_classes()
@@ -74,6 +81,7 @@ def masks_figure(out: Path, segmenter: str, env_id: str = "HeteroTidy-v2",
         obs, info = env.reset(seed=episode, options={"episode": episode})
         name = u.episode.id
         table = classes.lookup(u.instances)
+        space = ObjectSpace(u.house)  # the floor plan (objects are not read)
         execution = Execution(make_team("expert"), u, episode)
         for _ in range(steps):
             for agent in u.agent_names:
@@ -83,22 +91,35 @@ def masks_figure(out: Path, segmenter: str, env_id: str = "HeteroTidy-v2",
                 shown = int((classes.is_pickupable(truth) & (truth > 0)).sum())
                 if agent not in best or shown > best[agent][0]:
                     depth = np.asarray(o["depth"], dtype=np.float32).reshape(truth.shape)
-                    best[agent] = (shown, np.asarray(o["rgb"]).copy(), depth, truth)
+                    best[agent] = (shown, np.asarray(o["rgb"]).copy(), depth, truth,
+                                   o["intrinsics"], o["extrinsics"])  # fmt: skip
             obs, _, terminated, truncated, info = env.step(execution.step(obs, info))
             if terminated or truncated:
                 break
     finally:
         env.close()
     agents = sorted(best)
-    fig, axes = plt.subplots(len(agents), 3, figsize=(9.6, 3.3 * len(agents)), squeeze=False)
+    chosen = card.get("agent_threshold")
+    threshold = float(chosen["threshold"]) if chosen else 0.0
+    fig, axes = plt.subplots(len(agents), 4, figsize=(12.8, 3.3 * len(agents)), squeeze=False)
     for r, agent in enumerate(agents):
-        _, rgb, depth, truth = best[agent]
-        predicted = upsample(*runtime(rgb[None], depth[None]), depth.shape)[0]
+        _, rgb, depth, truth, K, E = best[agent]
+        labels, probs = runtime(rgb[None], depth[None])
+        predicted = upsample(labels, probs, depth.shape)[0]
+        _, found, starts = find_masks(space, labels[0], probs[0], depth, K, E, threshold)
+        found = [m for m, t in zip(found, starts, strict=True) if m.score >= t]
+        objects = np.zeros(depth.shape, np.int64)
+        for m in found:
+            m.paint(objects, m.cls)
+        found_img = overlay(rgb, objects, masked_only=True)
         panels = [(rgb / 255.0, None, "RGB"), (overlay(rgb, truth), truth, "renderer's classes"),
-                  (overlay(rgb, predicted[0]), predicted[0], "segmenter's classes")]  # fmt: skip
+                  (overlay(rgb, predicted[0]), predicted[0], "segmenter's classes"),
+                  (found_img, found, "objects as agents find them")]  # fmt: skip
         for ax, (img, labels, title) in zip(axes[r], panels, strict=True):
             ax.imshow(img)
-            if labels is not None:
+            if isinstance(labels, list):
+                _name_objects(ax, objects, depth, labels)
+            elif labels is not None:
                 _name_objects(ax, labels, depth)
             ax.set_xticks([])
             ax.set_yticks([])

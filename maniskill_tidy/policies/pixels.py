@@ -39,6 +39,7 @@ detections, counted only where the object could not have hidden).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import time
 from collections import Counter
 from typing import ClassVar
@@ -47,7 +48,7 @@ import numpy as np
 from scipy import ndimage
 
 from maniskill_tidy.envs.actions import MIN_PIXELS, NOTHING_DRAWN, Action, Targeted
-from maniskill_tidy.perception.instances import coarse, scored_by_relief, split_instances
+from maniskill_tidy.perception.instances import Mask2D, coarse, scored_by_relief, split_instances
 from maniskill_tidy.perception.object_space import ObjectSpace, frame_objects, unexplained
 from maniskill_tidy.perception.seg_classes import STRUCTURE, seg_classes
 from maniskill_tidy.perception.tracks import (
@@ -211,6 +212,38 @@ class LabelTable:
         return self.by_track[track.id]
 
 
+@functools.cache
+def _mask_classes() -> tuple[list[int], np.ndarray]:
+    """The classes instances are made of (robots, furniture, pickupable types), and per class
+    id (256) whether it is a pickupable type."""
+    c = seg_classes()
+    objects = np.zeros(256, bool)
+    objects[[i for i in range(1, len(c.names)) if c.is_pickupable(i)]] = True
+    return [i for i, n in enumerate(c.names)
+            if n == "robot" or n.startswith("furniture:") or objects[i]], objects  # fmt: skip
+
+
+def find_masks(space: ObjectSpace, labels: np.ndarray, probs: np.ndarray, depth: np.ndarray,
+               intrinsics, extrinsics, threshold: float,
+               ) -> tuple[list[Mask2D], list[Mask2D], list[float]]:  # fmt: skip
+    """One frame's masks as a pixels agent makes them: every instance mask of the segmenter's
+    labels on its grid (robots, furniture, objects), and the object masks at the frame's
+    resolution (``object_space.frame_objects``) with the score each needs to start a track.
+    ``threshold``: the segmenter card's start score for its own object masks."""
+    classes, objects = _mask_classes()
+    grid = depth.shape[0] // labels.shape[0]
+    depth_g = coarse(depth, grid)
+    masks = split_instances(labels, depth_g, classes, probs, -(-MIN_PIXELS // grid**2))
+    masks = scored_by_relief(masks, depth_g, np.flatnonzero(objects).tolist())
+    free = unexplained(space, depth, intrinsics, extrinsics)
+    found, thresholds = frame_objects(
+        masks, free, depth, labels, probs, objects,
+        keep=min(KEEP_THRESHOLD, threshold), start=threshold,
+        plan_keep=PLAN_KEEP, plan_start=PLAN_START, covered=PLAN_COVERED, min_pixels=MIN_PIXELS,
+    )  # fmt: skip
+    return masks, found, thresholds
+
+
 class PixelsAgent(Agent):
     """A camera-only agent seeing through the segmenter (see the module's docstring)."""
 
@@ -224,13 +257,7 @@ class PixelsAgent(Agent):
         self.decide_every = self.inner.decide_every
         self.house = public.house
         c = self.table.classes
-        self.instance_classes = [i for i, n in enumerate(c.names)
-                                 if n == "robot" or n.startswith("furniture:")
-                                 or c.is_pickupable(i)]  # fmt: skip
         self.furniture_by_id = public.house.furniture_by_id()
-        self.object_classes = [i for i in range(len(c.names)) if c.is_pickupable(i) and i]
-        self.pickupable = np.zeros(256, bool)
-        self.pickupable[self.object_classes] = True
         self.space = ObjectSpace(public.house)
         pieces: dict[str, list] = {}
         for f in public.house.furniture:
@@ -273,16 +300,9 @@ class PixelsAgent(Agent):
         K, E = coarse_intrinsics(obs["intrinsics"], grid), obs["extrinsics"]
         camera = camera_position(E)
         start = time.perf_counter()
-        masks = split_instances(labels, depth_g, self.instance_classes, probs,
-                                -(-MIN_PIXELS // grid**2))  # fmt: skip
-        masks = scored_by_relief(masks, depth_g, self.object_classes)
-        free = unexplained(self.space, depth, obs["intrinsics"], E)
-        found, thresholds = frame_objects(
-            masks, free, depth, labels, probs, self.pickupable,
-            keep=min(KEEP_THRESHOLD, self.segmenter.threshold), start=self.segmenter.threshold,
-            plan_keep=PLAN_KEEP, plan_start=PLAN_START, covered=PLAN_COVERED,
-            min_pixels=MIN_PIXELS,
-        )  # fmt: skip
+        masks, found, thresholds = find_masks(
+            self.space, labels, probs, depth, obs["intrinsics"], E, self.segmenter.threshold
+        )
         named = time.perf_counter()
         self.segmenter.seconds["instances"] += named - start
         objects, starts = [], []
