@@ -133,7 +133,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     sl.set_defaults(func=_show_looks)
 
     sm = sub.add_parser(
-        "show-masks", help="agent frames: the truth, the learned segmenter's classes, the objects agents find"
+        "show-masks", help="agent frames: the truth, the segmenter's classes, objects agents find"
     )
     sm.add_argument("--segmenter", default="agents/segmenter-v2", help="a segmenter's folder")
     sm.add_argument("--dataset", help="default: the shipped dataset")
