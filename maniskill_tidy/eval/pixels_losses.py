@@ -135,8 +135,11 @@ class PixelsLosses:
             objects.append({"type": self.type_of[oid], "fate": fate,
                             "tracks": len(self.slots[oid]), "merged": merged,
                             "largest_view": self.largest[oid]})  # fmt: skip
-        return {"objects": objects, "false_pickups": self.false_pickups,
-                "in_place_picked": self.in_place_picked}
+        return {
+            "objects": objects,
+            "false_pickups": self.false_pickups,
+            "in_place_picked": self.in_place_picked,
+        }
 
 
 def summarise(records: list[dict]) -> dict:
