@@ -69,7 +69,7 @@ def masks_figure(out: Path, segmenter: str, env_id: str = "HeteroTidy-v2",
     from maniskill_tidy.models.segmenter import upsample
     from maniskill_tidy.perception.object_space import ObjectSpace
     from maniskill_tidy.policies import make_team
-    from maniskill_tidy.policies.pixels import find_masks
+    from maniskill_tidy.policies.pixels import find_masks, start_threshold
 
     runtime, _, card = served_segmenter(segmenter, 2)  # what agents run
     classes = seg_classes()
@@ -99,8 +99,7 @@ def masks_figure(out: Path, segmenter: str, env_id: str = "HeteroTidy-v2",
     finally:
         env.close()
     agents = sorted(best)
-    chosen = card.get("agent_threshold")
-    threshold = float(chosen["threshold"]) if chosen else 0.0
+    threshold = start_threshold(card)
     fig, axes = plt.subplots(len(agents), 4, figsize=(12.8, 3.3 * len(agents)), squeeze=False)
     for r, agent in enumerate(agents):
         _, rgb, depth, truth, K, E = best[agent]

@@ -120,9 +120,7 @@ class Segmenter:
         if folder not in self._loaded:  # the threads the renderer may use in this process
             self._loaded[folder] = served_segmenter(folder, render_threads())
         self.runtime, self.sha256, card = self._loaded[folder]
-        # object masks less confident than this are left out (the card's, chosen on val)
-        chosen = card.get("agent_threshold")
-        self.threshold = float(chosen["threshold"]) if chosen else 0.0
+        self.threshold = start_threshold(card)
         # seconds spent per stage and frames seen in this process (``bench --only teams``)
         self.seconds = {"segmenter": 0.0, "instances": 0.0, "labels": 0.0}
         self.frames = 0
@@ -151,6 +149,13 @@ class Segmenter:
         self.seconds["segmenter"] += time.perf_counter() - start
         self.frames += 1
         return labels[0], probs[0]
+
+
+def start_threshold(card: dict) -> float:
+    """The score an object mask needs to start a track: the card's, chosen on val (0 for a
+    card that chose none)."""
+    chosen = card.get("agent_threshold")
+    return float(chosen["threshold"]) if chosen else 0.0
 
 
 def render_threads() -> int:
@@ -213,14 +218,15 @@ class LabelTable:
 
 
 @functools.cache
-def _mask_classes() -> tuple[list[int], np.ndarray]:
-    """The classes instances are made of (robots, furniture, pickupable types), and per class
-    id (256) whether it is a pickupable type."""
+def _mask_classes() -> tuple[list[int], np.ndarray, list[int]]:
+    """The classes instances are made of (robots, furniture, pickupable types), per class id
+    (256) whether it is a pickupable type, and the pickupable class ids."""
     c = seg_classes()
     objects = np.zeros(256, bool)
     objects[[i for i in range(1, len(c.names)) if c.is_pickupable(i)]] = True
-    return [i for i, n in enumerate(c.names)
-            if n == "robot" or n.startswith("furniture:") or objects[i]], objects  # fmt: skip
+    classes = [i for i, n in enumerate(c.names)
+               if n == "robot" or n.startswith("furniture:") or objects[i]]  # fmt: skip
+    return classes, objects, np.flatnonzero(objects).tolist()
 
 
 def find_masks(space: ObjectSpace, labels: np.ndarray, probs: np.ndarray, depth: np.ndarray,
@@ -230,11 +236,11 @@ def find_masks(space: ObjectSpace, labels: np.ndarray, probs: np.ndarray, depth:
     labels on its grid (robots, furniture, objects), and the object masks at the frame's
     resolution (``object_space.frame_objects``) with the score each needs to start a track.
     ``threshold``: the segmenter card's start score for its own object masks."""
-    classes, objects = _mask_classes()
+    classes, objects, object_ids = _mask_classes()
     grid = depth.shape[0] // labels.shape[0]
     depth_g = coarse(depth, grid)
     masks = split_instances(labels, depth_g, classes, probs, -(-MIN_PIXELS // grid**2))
-    masks = scored_by_relief(masks, depth_g, np.flatnonzero(objects).tolist())
+    masks = scored_by_relief(masks, depth_g, object_ids)
     free = unexplained(space, depth, intrinsics, extrinsics)
     found, thresholds = frame_objects(
         masks, free, depth, labels, probs, objects,
