@@ -8,7 +8,8 @@ recall of the masks agents start tracks from, for a sweep of the floor plan's st
 
 The segmenter runs as agents run it (its int8 graph through ONNX Runtime); ``--per`` frames
 evenly spaced of each val house (the frames carry no task, the houses' floor plans come from
-the dataset the frames were rendered from).
+the dataset the frames were rendered from). ``--robots-out`` and ``--own-body`` leave robots
+out of what the floor plan does not explain (research log, seventeenth part: both lower AP50).
 
     .venv/bin/python docs/research/probes/floor_plan_masks.py agents/segmenter-v2 \\
         --data data/segmenter/HeteroTidy-v2/val --dataset data/tidy120 --per 20
@@ -38,9 +39,27 @@ from maniskill_tidy.perception.object_space import (
     object_masks,
     unexplained,
 )
+from maniskill_tidy.perception.seg_classes import seg_classes
+from maniskill_tidy.perception.tracks import back_project, camera_position
 from maniskill_tidy.policies.pixels import KEEP_THRESHOLD, PLAN_COVERED, PLAN_KEEP, PLAN_START
 from maniskill_tidy.tasks.dataset import load_dataset
 from maniskill_tidy.training.segmenter_trainer import truth_masks
+
+
+def without_class(unexplained_px: np.ndarray, labels: np.ndarray, cls: int) -> np.ndarray:
+    """The unexplained pixels less those the segmenter labels ``cls`` (on its grid): robots are
+    not in the floor plan either, and an object beside one makes one part with it."""
+    step = unexplained_px.shape[0] // labels.shape[0]
+    own = np.repeat(np.repeat(labels == cls, step, axis=0), step, axis=1)
+    return unexplained_px & ~own
+
+
+def near_camera(depth, intrinsics, extrinsics, radius: float) -> np.ndarray:
+    """Pixels whose point lies within ``radius`` of the camera, horizontally."""
+    rows, cols = np.indices(depth.shape)
+    pts = back_project(rows.ravel(), cols.ravel(), depth, intrinsics, extrinsics)
+    cam = camera_position(extrinsics)
+    return (np.hypot(*(pts[:, :2] - cam[:2]).T) < radius).reshape(depth.shape)
 
 
 def main() -> None:
@@ -52,7 +71,13 @@ def main() -> None:
     ap.add_argument("--per", type=int, default=20, help="frames per house, evenly spaced")
     ap.add_argument("--starts", default="0.3,0.35,0.4,0.45,0.5,0.55,0.6",
                     help="the floor plan's start scores to sweep")  # fmt: skip
+    ap.add_argument("--robots-out", action="store_true",
+                    help="leave out of the unexplained pixels those labelled robot")  # fmt: skip
+    ap.add_argument("--own-body", type=float, default=0.0,
+                    help="metres: leave out unexplained pixels this near the camera, "
+                         "horizontally (the agent's own body)")  # fmt: skip
     args = ap.parse_args()
+    robot = seg_classes().index["robot"]
     runtime, _, card = served_segmenter(args.weights, 2)
     card_start = float(card["agent_threshold"]["threshold"])
     keep = min(KEEP_THRESHOLD, card_start)
@@ -80,6 +105,11 @@ def main() -> None:
             )
             truth = truth_masks(frames["cls"][j], frames["instance"][j], classes)
             free = unexplained(space, d, frames["intrinsics"][j], frames["extrinsics"][j])
+            if args.own_body:
+                free = free & ~near_camera(d, frames["intrinsics"][j], frames["extrinsics"][j],
+                                           args.own_body)  # fmt: skip
+            if args.robots_out:
+                free = without_class(free, lab, robot)
             own = refined([m for m in masks if m.score >= keep], d, grid, MIN_PIXELS)
             rows["segmenter's masks"].append((truth, own))
             plan = object_masks(free, d, lab, mar, pickupable, MIN_PIXELS)
