@@ -9,7 +9,8 @@ recall of the masks agents start tracks from, for a sweep of the floor plan's st
 The segmenter runs as agents run it (its int8 graph through ONNX Runtime); ``--per`` frames
 evenly spaced of each val house (the frames carry no task, the houses' floor plans come from
 the dataset the frames were rendered from). ``--robots-out`` and ``--own-body`` leave robots
-out of what the floor plan does not explain (research log, seventeenth part: both lower AP50).
+out of what the floor plan does not explain (research log, seventeenth part: both lower AP50),
+``--furniture-out`` the pixels labelled furniture.
 
     .venv/bin/python docs/research/probes/floor_plan_masks.py agents/segmenter-v2 \\
         --data data/segmenter/HeteroTidy-v2/val --dataset data/tidy120 --per 20
@@ -46,11 +47,12 @@ from maniskill_tidy.tasks.dataset import load_dataset
 from maniskill_tidy.training.segmenter_trainer import truth_masks
 
 
-def without_class(unexplained_px: np.ndarray, labels: np.ndarray, cls: int) -> np.ndarray:
-    """The unexplained pixels less those the segmenter labels ``cls`` (on its grid): robots are
-    not in the floor plan either, and an object beside one makes one part with it."""
+def without_class(unexplained_px: np.ndarray, labels: np.ndarray, cls) -> np.ndarray:
+    """The unexplained pixels less those the segmenter labels ``cls`` (one class id or a list,
+    on its grid): robots are not in the floor plan either, nor is a piece's mesh where it
+    leaves the plan's boxes, and an object beside either makes one part with it."""
     step = unexplained_px.shape[0] // labels.shape[0]
-    own = np.repeat(np.repeat(labels == cls, step, axis=0), step, axis=1)
+    own = np.repeat(np.repeat(np.isin(labels, cls), step, axis=0), step, axis=1)
     return unexplained_px & ~own
 
 
@@ -76,8 +78,11 @@ def main() -> None:
     ap.add_argument("--own-body", type=float, default=0.0,
                     help="metres: leave out unexplained pixels this near the camera, "
                          "horizontally (the agent's own body)")  # fmt: skip
+    ap.add_argument("--furniture-out", action="store_true",
+                    help="leave out of the unexplained pixels the furniture labels")  # fmt: skip
     args = ap.parse_args()
     robot = seg_classes().index["robot"]
+    furniture = [i for i, n in enumerate(seg_classes().names) if n.startswith("furniture:")]
     runtime, _, card = served_segmenter(args.weights, 2)
     card_start = float(card["agent_threshold"]["threshold"])
     keep = min(KEEP_THRESHOLD, card_start)
@@ -110,6 +115,8 @@ def main() -> None:
                                            args.own_body)  # fmt: skip
             if args.robots_out:
                 free = without_class(free, lab, robot)
+            if args.furniture_out:
+                free = without_class(free, lab, furniture)
             own = refined([m for m in masks if m.score >= keep], d, grid, MIN_PIXELS)
             rows["segmenter's masks"].append((truth, own))
             plan = object_masks(free, d, lab, mar, pickupable, MIN_PIXELS)
