@@ -14,10 +14,9 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
+import pixels_probe
 
-from maniskill_tidy.eval.episode import play_episode
 from maniskill_tidy.eval.pixels_losses import PixelsLosses
-from maniskill_tidy.eval.runner import RunConfig, make_env, make_run_team
 from maniskill_tidy.perception.object_space import object_masks, unexplained
 from maniskill_tidy.perception.seg_classes import seg_classes
 from maniskill_tidy.policies.pixels import _mask_classes, find_masks, frame_arrays
@@ -86,16 +85,9 @@ def main() -> None:
     ap.add_argument("type", help="the misplaced object's type")
     ap.add_argument("--dataset", default="data/tidy120")
     args = ap.parse_args()
-    cfg = RunConfig("memory", "I", "val", args.dataset, 1, env="HeteroTidy-v2",
-                    segmentation="learned")  # fmt: skip
-    env, team = make_env(cfg), make_run_team(cfg)
-    try:
-        episodes = env.unwrapped.episodes.episodes
-        i = next(k for k, e in enumerate(episodes) if e.id == args.episode)
-        steps = {int(s) for s in args.steps.split(",")}
-        play_episode(env, team, i, i, [ObjectInFrame(steps, args.type)])
-    finally:
-        env.close()
+    steps = {int(s) for s in args.steps.split(",")}
+    pixels_probe.play_one(ap, args.episode, [ObjectInFrame(steps, args.type)], split="val",
+                          dataset=args.dataset)  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -67,3 +67,21 @@ def played(args: argparse.Namespace, observer: Callable[[], object]) -> Iterator
             yield play_episode(env, team, i, i, [*extra, log]), log
     finally:
         env.close()
+
+
+def play_one(ap: argparse.ArgumentParser, episode: str, observers: list, policy: str = "memory",
+             split: str = "test", dataset: str = "data/tidy120",
+             segmentation: str = "learned"):  # fmt: skip
+    """Play one Setting I episode of v2, named by its id, with ``observers``; its record. An id
+    the split does not hold is the command line's error (``ap.error``)."""
+    cfg = RunConfig(policy, "I", split, dataset, "all", env="HeteroTidy-v2",
+                    segmentation=segmentation)  # fmt: skip
+    env, team = make_env(cfg), make_run_team(cfg)
+    try:
+        ids = [e.id for e in env.unwrapped.episodes.episodes]
+        if episode not in ids:
+            ap.error(f"episode {episode!r} is not a Setting I {split} episode of {dataset}")
+        i = ids.index(episode)
+        return play_episode(env, team, i, i, observers)
+    finally:
+        env.close()

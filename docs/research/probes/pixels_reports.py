@@ -14,9 +14,6 @@ import argparse
 import numpy as np
 import pixels_probe
 
-from maniskill_tidy.eval.episode import play_episode
-from maniskill_tidy.eval.runner import RunConfig, make_env, make_run_team
-
 
 def entries(reports) -> set[tuple]:
     return {(r.type, tuple(np.round(r.xy, 2))) for r in reports}
@@ -56,18 +53,9 @@ def main() -> None:
     ap.add_argument("--segmentation", default="learned")
     ap.add_argument("--labels", choices=("segmenter", "renderer"), default="segmenter")
     args = ap.parse_args()
-    cfg = RunConfig(args.policy, "I", "test", args.dataset, "all",
-                    env="HeteroTidy-v2", segmentation=args.segmentation)  # fmt: skip
-    env, team = make_env(cfg), make_run_team(cfg)
-    ids = [e.id for e in env.unwrapped.episodes.episodes]
-    if args.episode not in ids:
-        ap.error(f"episode {args.episode!r} is not a Setting I test episode of {args.dataset}")
-    i = ids.index(args.episode)
     extra = [pixels_probe.TruthLabels()] if args.labels == "renderer" else []
-    try:
-        record = play_episode(env, team, i, i, [*extra, ReportTrace()])
-    finally:
-        env.close()
+    record = pixels_probe.play_one(ap, args.episode, [*extra, ReportTrace()], args.policy,
+                                   "test", args.dataset, args.segmentation)  # fmt: skip
     print(f"{record.episode}: success {record.success}, placed {record.reasonable}")
 
 
