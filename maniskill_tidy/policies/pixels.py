@@ -218,7 +218,7 @@ class LabelTable:
 
 
 @functools.cache
-def _mask_classes() -> tuple[list[int], np.ndarray, list[int]]:
+def mask_classes() -> tuple[list[int], np.ndarray, list[int]]:
     """The classes instances are made of (robots, furniture, pickupable types), per class id
     (256) whether it is a pickupable type, and the pickupable class ids."""
     c = seg_classes()
@@ -236,7 +236,7 @@ def find_masks(space: ObjectSpace, labels: np.ndarray, probs: np.ndarray, depth:
     labels on its grid (robots, furniture, objects), and the object masks at the frame's
     resolution (``object_space.frame_objects``) with the score each needs to start a track.
     ``threshold``: the segmenter card's start score for its own object masks."""
-    classes, objects, object_ids = _mask_classes()
+    classes, objects, object_ids = mask_classes()
     grid = depth.shape[0] // labels.shape[0]
     depth_g = coarse(depth, grid)
     masks = split_instances(labels, depth_g, classes, probs, -(-MIN_PIXELS // grid**2))

@@ -81,8 +81,10 @@ def main() -> None:
     ap.add_argument("--furniture-out", action="store_true",
                     help="leave out of the unexplained pixels the furniture labels")  # fmt: skip
     args = ap.parse_args()
-    robot = seg_classes().index["robot"]
-    furniture = [i for i, n in enumerate(seg_classes().names) if n.startswith("furniture:")]
+    c = seg_classes()
+    robot = c.index["robot"] if args.robots_out else None
+    furniture = ([i for i, n in enumerate(c.names) if n.startswith("furniture:")]
+                 if args.furniture_out else None)  # fmt: skip
     runtime, _, card = served_segmenter(args.weights, 2)
     card_start = float(card["agent_threshold"]["threshold"])
     keep = min(KEEP_THRESHOLD, card_start)

@@ -19,7 +19,7 @@ import pixels_probe
 from maniskill_tidy.eval.pixels_losses import PixelsLosses
 from maniskill_tidy.perception.object_space import object_masks, unexplained
 from maniskill_tidy.perception.seg_classes import seg_classes
-from maniskill_tidy.policies.pixels import _mask_classes, find_masks, frame_arrays
+from maniskill_tidy.policies.pixels import find_masks, frame_arrays, mask_classes
 
 MIN_DRAWN = 20  # pixels of the object a frame must draw to be looked at
 
@@ -58,7 +58,7 @@ class ObjectInFrame(PixelsLosses):
             votes = [(names[a], int(b)) for a, b in zip(ids, n, strict=True)]
             print(f"t {t} {name}: {int(truth.sum())} px, unexplained {free[truth].mean():.2f}, "
                   f"labels {votes}")  # fmt: skip
-            _, objects, _ = _mask_classes()
+            _, objects, _ = mask_classes()
             for m in object_masks(free, depth, lab, probs, objects, MIN_DRAWN):
                 if (m.mask & truth).any():
                     r, c = np.nonzero(m.mask)
