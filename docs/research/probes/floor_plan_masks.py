@@ -10,7 +10,11 @@ The segmenter runs as agents run it (its int8 graph through ONNX Runtime); ``--p
 evenly spaced of each val house (the frames carry no task, the houses' floor plans come from
 the dataset the frames were rendered from). ``--robots-out`` and ``--own-body`` leave robots
 out of what the floor plan does not explain (research log, seventeenth part: both lower AP50),
-``--furniture-out`` the pixels labelled furniture.
+``--furniture-out`` the pixels labelled furniture. ``--own-unclaimed`` keeps the segmenter's
+own object masks wherever no kept floor-plan mask claims their pixels (not only where the plan
+explains them), and ``--cut-rejected C`` also cuts each floor-plan part under ``PLAN_KEEP`` to
+its pixels labelled pickupable, keeping the sub-parts that reach it and fill at least ``C`` of
+their box (research log, eighteenth part).
 
     .venv/bin/python docs/research/probes/floor_plan_masks.py agents/segmenter-v2 \\
         --data data/segmenter/HeteroTidy-v2/val --dataset data/tidy120 --per 20
@@ -19,6 +23,7 @@ out of what the floor plan does not explain (research log, seventeenth part: bot
 from __future__ import annotations
 
 import argparse
+import functools
 from pathlib import Path
 
 import numpy as np
@@ -64,6 +69,37 @@ def near_camera(depth, intrinsics, extrinsics, radius: float) -> np.ndarray:
     return (np.hypot(*(pts[:, :2] - cam[:2]).T) < radius).reshape(depth.shape)
 
 
+def unclaimed_objects(masks, free, depth, labels, margins, pickupable, keep, start, plan_keep,
+                      plan_start, covered, min_pixels, cut_rejected=None):  # fmt: skip
+    """``frame_objects`` with the segmenter's own masks cut only by the kept floor-plan
+    masks' pixels (and, with ``cut_rejected``, rejected parts cut to their object labels)."""
+    grid = depth.shape[0] // labels.shape[0]
+    parts = object_masks(free, depth, labels, margins, pickupable, min_pixels)
+    plan = [m for m in parts if m.score >= plan_keep]
+    if cut_rejected is not None:
+        labelled = np.repeat(np.repeat(pickupable[labels], grid, 0), grid, 1)
+        for m in parts:
+            if m.score >= plan_keep:
+                continue
+            for sub in object_masks(m.mask & labelled, depth, labels, margins, pickupable,
+                                    min_pixels):  # fmt: skip
+                rows, cols = sub.window
+                height = (rows.stop or depth.shape[0]) - (rows.start or 0)
+                box = height * ((cols.stop or depth.shape[1]) - (cols.start or 0))
+                if sub.score >= plan_keep and sub.area >= cut_rejected * box:
+                    plan.append(sub)
+    claimed = np.zeros(free.shape, bool)
+    for m in plan:
+        claimed |= m.mask
+    claimed_g = coarse(claimed, grid)
+    own = [m for m in masks if pickupable[m.cls] and m.score >= keep
+           and claimed_g[m.window][m.mask[m.window]].mean() < covered]  # fmt: skip
+    own = [Mask2D(m.cls, m.mask & ~claimed, m.score, m.box)
+           for m in refined(own, depth, grid, min_pixels)]  # fmt: skip
+    own = [m for m in own if m.area >= min_pixels]
+    return plan + own, [plan_start] * len(plan) + [start] * len(own)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("weights", help="a trained segmenter's folder, e.g. agents/segmenter-v2")
@@ -80,7 +116,17 @@ def main() -> None:
                          "horizontally (the agent's own body)")  # fmt: skip
     ap.add_argument("--furniture-out", action="store_true",
                     help="leave out of the unexplained pixels the furniture labels")  # fmt: skip
+    ap.add_argument("--own-unclaimed", action="store_true",
+                    help="keep the segmenter's own masks where no kept floor-plan mask claims "
+                         "their pixels")  # fmt: skip
+    ap.add_argument("--cut-rejected", type=float, default=None, metavar="C",
+                    help="with --own-unclaimed: cut parts under PLAN_KEEP to their object "
+                         "labels; keep sub-parts filling C of their box")  # fmt: skip
     args = ap.parse_args()
+    if args.cut_rejected is not None and not args.own_unclaimed:
+        ap.error("--cut-rejected: expected with --own-unclaimed")
+    objects_of = (functools.partial(unclaimed_objects, cut_rejected=args.cut_rejected)
+                  if args.own_unclaimed else frame_objects)  # fmt: skip
     c = seg_classes()
     robot = c.index["robot"] if args.robots_out else None
     furniture = ([i for i, n in enumerate(c.names) if n.startswith("furniture:")]
@@ -123,7 +169,7 @@ def main() -> None:
             rows["segmenter's masks"].append((truth, own))
             plan = object_masks(free, d, lab, mar, pickupable, MIN_PIXELS)
             rows["floor plan's masks"].append((truth, plan))
-            found, starts = frame_objects(
+            found, starts = objects_of(
                 masks, free, d, lab, mar, pickupable, keep, card_start,
                 PLAN_KEEP, PLAN_START, PLAN_COVERED, MIN_PIXELS,
             )  # fmt: skip
@@ -132,7 +178,7 @@ def main() -> None:
                 Mask2D(m.cls, m.mask, m.score + (shift if s == PLAN_START else 0.0), m.box)
                 for m, s in zip(found, starts, strict=True)
             ]))  # fmt: skip
-            every, kinds = frame_objects(masks, free, d, lab, mar, pickupable, keep, card_start,
+            every, kinds = objects_of(masks, free, d, lab, mar, pickupable, keep, card_start,
                                          0.0, -1.0, PLAN_COVERED, MIN_PIXELS)  # fmt: skip
             for t, pairs in started.items():
                 pairs.append((truth, [
