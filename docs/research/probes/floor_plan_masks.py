@@ -14,7 +14,9 @@ out of what the floor plan does not explain (research log, seventeenth part: bot
 own object masks wherever no kept floor-plan mask claims their pixels (not only where the plan
 explains them), and ``--cut-rejected C`` also cuts each floor-plan part under ``PLAN_KEEP`` to
 its pixels labelled pickupable, keeping the sub-parts that reach it and fill at least ``C`` of
-their box (research log, eighteenth part).
+their box (research log, eighteenth part). ``--true-type`` adds a row: the masks as agents
+make them, each given the type of the object it covers most (a perfect second stage that types
+masks, as Mask R-CNN's box head names a proposal: this bounds what a crop classifier gives).
 
     .venv/bin/python docs/research/probes/floor_plan_masks.py agents/segmenter-v2 \\
         --data data/segmenter/HeteroTidy-v2/val --dataset data/tidy120 --per 20
@@ -29,6 +31,7 @@ from pathlib import Path
 import numpy as np
 import segmenter_probe
 from tqdm import tqdm
+from two_stage_ceiling import true_type
 
 from maniskill_tidy.envs.actions import MIN_PIXELS
 from maniskill_tidy.models.checkpoints import served_segmenter
@@ -122,6 +125,8 @@ def main() -> None:
     ap.add_argument("--cut-rejected", type=float, default=None, metavar="C",
                     help="with --own-unclaimed: cut parts under PLAN_KEEP to their object "
                          "labels; keep sub-parts filling C of their box")  # fmt: skip
+    ap.add_argument("--true-type", action="store_true",
+                    help="add the masks as agents make them, perfectly typed")  # fmt: skip
     args = ap.parse_args()
     if args.cut_rejected is not None and not args.own_unclaimed:
         ap.error("--cut-rejected: expected with --own-unclaimed")
@@ -139,6 +144,8 @@ def main() -> None:
     classes = [int(i) for i in np.nonzero(pickupable)[0]]
     rows: dict[str, list] = {"segmenter's masks": [], "floor plan's masks": [],
                              "as agents make them": []}  # fmt: skip
+    if args.true_type:
+        rows["perfectly typed"] = []
     started: dict[float, list] = {float(t): [] for t in args.starts.split(",")}
     shards = sorted(Path(args.data).glob("house_*.npz"))
     for shard in tqdm(shards, desc="houses", unit="house"):
@@ -178,6 +185,9 @@ def main() -> None:
                 Mask2D(m.cls, m.mask, m.score + (shift if s == PLAN_START else 0.0), m.box)
                 for m, s in zip(found, starts, strict=True)
             ]))  # fmt: skip
+            if args.true_type:
+                agents = rows["as agents make them"][-1][1]
+                rows["perfectly typed"].append((truth, [true_type(m, truth) for m in agents]))
             every, kinds = objects_of(masks, free, d, lab, mar, pickupable, keep, card_start,
                                          0.0, -1.0, PLAN_COVERED, MIN_PIXELS)  # fmt: skip
             for t, pairs in started.items():
