@@ -28,8 +28,10 @@ import argparse
 import functools
 from pathlib import Path
 
+import mask_typer
 import numpy as np
 import segmenter_probe
+import torch
 from tqdm import tqdm
 from two_stage_ceiling import true_type
 
@@ -50,7 +52,13 @@ from maniskill_tidy.perception.object_space import (
 )
 from maniskill_tidy.perception.seg_classes import seg_classes
 from maniskill_tidy.perception.tracks import back_project, camera_position
-from maniskill_tidy.policies.pixels import KEEP_THRESHOLD, PLAN_COVERED, PLAN_KEEP, PLAN_START
+from maniskill_tidy.policies.pixels import (
+    KEEP_THRESHOLD,
+    PLAN_COVERED,
+    PLAN_KEEP,
+    PLAN_START,
+    mask_classes,
+)
 from maniskill_tidy.tasks.dataset import load_dataset
 from maniskill_tidy.training.segmenter_trainer import truth_masks
 
@@ -103,6 +111,28 @@ def unclaimed_objects(masks, free, depth, labels, margins, pickupable, keep, sta
     return plan + own, [plan_start] * len(plan) + [start] * len(own)
 
 
+def retyped(typer, found, agents, frames, j, depth, labels, margins, object_ids):
+    """The masks agents make (``agents``: scored as in the row), typed by the typer; and the
+    same types scored by the typer's probability of them."""
+    if not found:
+        return [], []
+    K, E = frames["intrinsics"][j], frames["extrinsics"][j]
+    crops = [mask_typer.crop(frames["rgb"][j], depth, m, K, E,
+                             mask_typer.mask_votes(m, labels, margins, object_ids), m.score)
+             for m in found]  # fmt: skip
+    images = torch.from_numpy(np.stack([c[0] for c in crops])).float()
+    scalars = torch.from_numpy(np.stack([c[1] for c in crops]))
+    with torch.inference_mode():
+        p = torch.softmax(typer(images, scalars), 1).numpy()
+    k = p[:, :-1].argmax(1)
+    typed = [
+        Mask2D(int(object_ids[t]), m.mask, m.score, m.box) for m, t in zip(agents, k, strict=True)
+    ]
+    sure = [Mask2D(int(object_ids[t]), m.mask, float(p[i, t]), m.box)
+            for i, (m, t) in enumerate(zip(agents, k, strict=True))]  # fmt: skip
+    return typed, sure
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("weights", help="a trained segmenter's folder, e.g. agents/segmenter-v2")
@@ -125,6 +155,9 @@ def main() -> None:
     ap.add_argument("--cut-rejected", type=float, default=None, metavar="C",
                     help="with --own-unclaimed: cut parts under PLAN_KEEP to their object "
                          "labels; keep sub-parts filling C of their box")  # fmt: skip
+    ap.add_argument("--typer", default=None, metavar="DIR",
+                    help="add the masks as agents make them typed by mask_typer.py's "
+                         "trained second stage in DIR")  # fmt: skip
     ap.add_argument("--true-type", action="store_true",
                     help="add the masks as agents make them, perfectly typed")  # fmt: skip
     args = ap.parse_args()
@@ -146,6 +179,10 @@ def main() -> None:
                              "as agents make them": []}  # fmt: skip
     if args.true_type:
         rows["perfectly typed"] = []
+    if args.typer:
+        typer = mask_typer.load_typer(Path(args.typer))
+        object_ids = np.asarray(mask_classes()[2])
+        rows["typer's type"], rows["typer's type, p"] = [], []
     started: dict[float, list] = {float(t): [] for t in args.starts.split(",")}
     shards = sorted(Path(args.data).glob("house_*.npz"))
     for shard in tqdm(shards, desc="houses", unit="house"):
@@ -185,9 +222,13 @@ def main() -> None:
                 Mask2D(m.cls, m.mask, m.score + (shift if s == PLAN_START else 0.0), m.box)
                 for m, s in zip(found, starts, strict=True)
             ]))  # fmt: skip
+            agents = rows["as agents make them"][-1][1]
             if args.true_type:
-                agents = rows["as agents make them"][-1][1]
                 rows["perfectly typed"].append((truth, [true_type(m, truth) for m in agents]))
+            if args.typer:
+                typed, sure = retyped(typer, found, agents, frames, j, d, lab, mar, object_ids)
+                rows["typer's type"].append((truth, typed))
+                rows["typer's type, p"].append((truth, sure))
             every, kinds = objects_of(masks, free, d, lab, mar, pickupable, keep, card_start,
                                          0.0, -1.0, PLAN_COVERED, MIN_PIXELS)  # fmt: skip
             for t, pairs in started.items():
