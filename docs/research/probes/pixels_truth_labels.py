@@ -3,37 +3,52 @@ and pixel targets, fed the renderer's classes (on the segmenter's half-resolutio
 pixel fully confident) in place of the segmenter's. Still no instance id: objects are made from
 classes and depth as the segmenter's labels are. Beside the same team on ground truth (instance
 ids) and on the learned segmenter, in the same episodes: the pixels team's loss split into what
-the segmenter costs and what the rest of the pixels pipeline costs.
+the segmenter costs and what the rest of the pixels pipeline costs. Two arms correct a part of
+the segmenter's labels only (``pixels_probe.TruthLabels``): the object pixels, or the types of
+what it takes for objects. Each pixels arm also prints its objects' fates (``pixels-losses``).
 
     .venv/bin/python docs/research/probes/pixels_truth_labels.py --policy memory \\
-        --dataset data/tidy120 --episodes 12
+        --dataset data/tidy120 --episodes 12 [--arms renderer renderer-objects renderer-types]
 """
 
 from __future__ import annotations
 
 import pixels_probe
 
-
-class Nothing:
-    """No observer: the episode's record is enough."""
+from maniskill_tidy.eval.pixels_losses import PixelsLosses, summarise
 
 
 def main() -> None:
-    args = pixels_probe.arguments(__doc__, "memory", 12)
+    names = ("ground-truth", "learned", "renderer", "renderer-objects", "renderer-types")
+    args = pixels_probe.arguments(
+        __doc__,
+        "memory",
+        12,
+        lambda ap: ap.add_argument(
+            "--arms", nargs="+", choices=names, default=names, help="which arms to play"
+        ),
+    )
     totals = {}
     learned = args.segmentation
     arms = (("ground truth (ids)", "ground-truth", "segmenter"),
             ("learned segmenter", learned, "segmenter"),
-            ("renderer's classes", learned, "renderer"))  # fmt: skip
-    for name, args.segmentation, args.labels in arms:
+            ("renderer's classes", learned, "renderer"),
+            ("renderer's object pixels", learned, "renderer-objects"),
+            ("renderer's types of its object pixels", learned, "renderer-types"))  # fmt: skip
+    for (name, args.segmentation, args.labels), key in zip(arms, names, strict=True):
+        if key not in args.arms:
+            continue
         success = placed = k = 0
-        for record, _ in pixels_probe.played(args, Nothing):
+        fates = []
+        for record, losses in pixels_probe.played(args, PixelsLosses):
             success, placed, k = success + record.success, placed + record.reasonable, k + record.k
             print(f"{name}: {record.episode} success {record.success}, placed {record.reasonable}"
-                  f"/{record.k}")  # fmt: skip
-        totals[name] = (success, placed, k)
-    for name, (success, placed, k) in totals.items():
-        print(f"{name}: Success {success}/{args.episodes}, placed {placed}/{k}")
+                  f"/{record.k}", flush=True)  # fmt: skip
+            fates.append({"pixels": losses.result()})
+        pixels = args.segmentation != "ground-truth"
+        totals[name] = (success, placed, k, summarise(fates)["fates"] if pixels else "")
+    for name, (success, placed, k, fates) in totals.items():
+        print(f"{name}: Success {success}/{args.episodes}, placed {placed}/{k} {fates}")
 
 
 if __name__ == "__main__":
