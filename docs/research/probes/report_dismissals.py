@@ -2,8 +2,9 @@
 each report a manipulator of a pixels team takes for stale (``HeuristicAgent.dismissed``) that
 lies within 0.5 m of a misplaced object: how far the object was from its camera, how many
 pixels of the object its frame drew (the renderer's masks, the observer's only), whether any of
-its own object masks covered them, and the object's fate. Tells "it looked and its segmenter
-did not find it" from "the spot looked clear at some height while the object was hidden".
+its own object masks covered them, the object's fate, and how far the report's point lay from
+it. Tells "it looked and its segmenter did not find it" from "the spot looked clear at some
+height while the object was hidden".
 
     .venv/bin/python docs/research/probes/report_dismissals.py --policy memory \\
         --dataset data/tidy120 --episodes 36 --split val
@@ -58,6 +59,7 @@ class Dismissals(Unpicked):
                             "area": area,
                             "own": own,
                             "dist": round(dist, 2),
+                            "off": round(float(np.hypot(*(np.asarray(r.xy) - bottom[:2]))), 2),
                             "z": round(float(bottom[2]), 2),
                             "t": t,
                         }
@@ -82,7 +84,8 @@ def main() -> None:
             kinds[(fate[e["oid"]], drawn)] += 1
             print(
                 f"{record.episode} {e['type']} ({fate[e['oid']]}): t {e['t']} dist "
-                f"{e['dist']} m, object at z {e['z']}, {e['area']} px drawn, {e['own']} "
+                f"{e['dist']} m, report {e['off']} m off, object at z {e['z']}, "
+                f"{e['area']} px drawn, {e['own']} "
                 f"under own masks, report {'its type' if e['same_type'] else 'another type'}"
             )
     print("dismissals by the object's fate and what the frame drew of it:")
