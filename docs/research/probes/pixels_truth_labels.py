@@ -19,25 +19,23 @@ from maniskill_tidy.eval.pixels_losses import PixelsLosses, summarise
 
 
 def main() -> None:
-    names = ("ground-truth", "learned", "renderer", "renderer-objects", "renderer-types")
+    arms = {"ground-truth": "ground truth (ids)", "learned": "learned segmenter",
+            "renderer": "renderer's classes", "renderer-objects": "renderer's object pixels",
+            "renderer-types": "renderer's types of its object pixels"}  # fmt: skip
     args = pixels_probe.arguments(
         __doc__,
         "memory",
         12,
         lambda ap: ap.add_argument(
-            "--arms", nargs="+", choices=names, default=names, help="which arms to play"
+            "--arms", nargs="+", choices=list(arms), default=list(arms), help="which arms to play"
         ),
     )
     totals = {}
     learned = args.segmentation
-    arms = (("ground truth (ids)", "ground-truth", "segmenter"),
-            ("learned segmenter", learned, "segmenter"),
-            ("renderer's classes", learned, "renderer"),
-            ("renderer's object pixels", learned, "renderer-objects"),
-            ("renderer's types of its object pixels", learned, "renderer-types"))  # fmt: skip
-    for (name, args.segmentation, args.labels), key in zip(arms, names, strict=True):
-        if key not in args.arms:
-            continue
+    for key in args.arms:
+        name = arms[key]
+        args.segmentation = "ground-truth" if key == "ground-truth" else learned
+        args.labels = key if key.startswith("renderer") else "segmenter"
         success = placed = k = 0
         fates = []
         for record, losses in pixels_probe.played(args, PixelsLosses):

@@ -45,7 +45,8 @@ class Dismissals(Unpicked):
             for r in new:
                 for oid in self.misplaced:
                     bottom = np.asarray(self.env.hs.object_bottom(oid))
-                    if np.hypot(*(np.asarray(r.xy) - bottom[:2])) >= NEAR:
+                    off = float(np.hypot(*(np.asarray(r.xy) - bottom[:2])))
+                    if off >= NEAR:
                         continue
                     mask = truth == self.seg_of[oid]
                     area = int(mask.sum())
@@ -59,7 +60,7 @@ class Dismissals(Unpicked):
                             "area": area,
                             "own": own,
                             "dist": round(dist, 2),
-                            "off": round(float(np.hypot(*(np.asarray(r.xy) - bottom[:2]))), 2),
+                            "off": round(off, 2),
                             "z": round(float(bottom[2]), 2),
                             "t": t,
                         }
