@@ -192,21 +192,30 @@ def object_masks(unexplained_px: np.ndarray, depth: np.ndarray, labels: np.ndarr
     label's margin), scored by the share of its pixels labelled some pickupable type times
     that type's share of their votes. ``labels`` and ``margins`` are on the segmenter's grid
     (a whole divisor of the frame's size); ``pickupable``: label -> bool."""
-    step = depth.shape[0] // labels.shape[0]
     parts = split_instances(unexplained_px.astype(np.uint8), depth, [1], None, min_pixels)
     out = []
     for m in parts:
-        w = m.window
-        rows, cols = np.nonzero(m.mask[w])
-        rows, cols = (rows + (w[0].start or 0)) // step, (cols + (w[1].start or 0)) // step
-        lab, mar = labels[rows, cols], margins[rows, cols]
-        voted = pickupable[lab]
-        if not voted.any():
+        votes, share = type_votes(m, labels, margins, pickupable)
+        if share == 0.0:
             continue
-        votes = np.bincount(lab[voted], weights=mar[voted], minlength=len(pickupable))
         cls = int(votes.argmax())
-        out.append(Mask2D(cls, m.mask, float(voted.mean() * votes[cls] / votes.sum()), m.box))
+        out.append(Mask2D(cls, m.mask, float(share * votes[cls] / votes.sum()), m.box))
     return out
+
+
+def type_votes(m: Mask2D, labels: np.ndarray, margins: np.ndarray, pickupable: np.ndarray,
+               ) -> tuple[np.ndarray, float]:  # fmt: skip
+    """Per label, the margins summed over the mask's pixels the segmenter labels some
+    pickupable type (on its grid, a whole divisor of the mask's size), and the share of the
+    mask's pixels so labelled."""
+    step = m.mask.shape[0] // labels.shape[0]
+    w = m.window
+    rows, cols = np.nonzero(m.mask[w])
+    rows, cols = (rows + (w[0].start or 0)) // step, (cols + (w[1].start or 0)) // step
+    lab, mar = labels[rows, cols], margins[rows, cols]
+    voted = pickupable[lab]
+    votes = np.bincount(lab[voted], weights=mar[voted], minlength=len(pickupable))
+    return votes, float(voted.mean()) if len(lab) else 0.0
 
 
 def frame_objects(masks: list[Mask2D], free: np.ndarray, depth: np.ndarray, labels: np.ndarray,
@@ -222,10 +231,19 @@ def frame_objects(masks: list[Mask2D], free: np.ndarray, depth: np.ndarray, labe
     grid = depth.shape[0] // labels.shape[0]
     plan = [m for m in object_masks(free, depth, labels, margins, pickupable, min_pixels)
             if m.score >= plan_keep]  # fmt: skip
-    free_g = coarse(free, grid)
-    own = [m for m in masks if pickupable[m.cls] and m.score >= keep
-           and free_g[m.window][m.mask[m.window]].mean() < covered]  # fmt: skip
-    own = [Mask2D(m.cls, m.mask & ~free, m.score, m.box)
-           for m in refined(own, depth, grid, min_pixels)]  # fmt: skip
-    own = [m for m in own if m.area >= min_pixels]
+    own = own_masks(masks, free, depth, grid, pickupable, keep, covered, min_pixels)
     return plan + own, [plan_start] * len(plan) + [start] * len(own)
+
+
+def own_masks(masks: list[Mask2D], cut: np.ndarray, depth: np.ndarray, grid: int,
+              pickupable: np.ndarray, keep: float, covered: float, min_pixels: int,
+              ) -> list[Mask2D]:  # fmt: skip
+    """The segmenter's own object ``masks`` of ``keep`` or more whose cells lie less than
+    ``covered`` within ``cut`` (frame pixels other masks take), refined to the frame's pixels
+    and cut to the rest; those of ``min_pixels`` or more."""
+    cut_g = coarse(cut, grid)
+    own = [m for m in masks if pickupable[m.cls] and m.score >= keep
+           and cut_g[m.window][m.mask[m.window]].mean() < covered]  # fmt: skip
+    own = [Mask2D(m.cls, m.mask & ~cut, m.score, m.box)
+           for m in refined(own, depth, grid, min_pixels)]  # fmt: skip
+    return [m for m in own if m.area >= min_pixels]

@@ -48,6 +48,7 @@ from maniskill_tidy.perception.object_space import (
     ObjectSpace,
     frame_objects,
     object_masks,
+    own_masks,
     unexplained,
 )
 from maniskill_tidy.perception.seg_classes import seg_classes
@@ -102,12 +103,7 @@ def unclaimed_objects(masks, free, depth, labels, margins, pickupable, keep, sta
     claimed = np.zeros(free.shape, bool)
     for m in plan:
         claimed |= m.mask
-    claimed_g = coarse(claimed, grid)
-    own = [m for m in masks if pickupable[m.cls] and m.score >= keep
-           and claimed_g[m.window][m.mask[m.window]].mean() < covered]  # fmt: skip
-    own = [Mask2D(m.cls, m.mask & ~claimed, m.score, m.box)
-           for m in refined(own, depth, grid, min_pixels)]  # fmt: skip
-    own = [m for m in own if m.area >= min_pixels]
+    own = own_masks(masks, claimed, depth, grid, pickupable, keep, covered, min_pixels)
     return plan + own, [plan_start] * len(plan) + [start] * len(own)
 
 

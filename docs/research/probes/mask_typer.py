@@ -29,7 +29,7 @@ from tqdm import tqdm
 
 from maniskill_tidy.models.checkpoints import served_segmenter
 from maniskill_tidy.perception.instances import Mask2D
-from maniskill_tidy.perception.object_space import ObjectSpace
+from maniskill_tidy.perception.object_space import ObjectSpace, type_votes
 from maniskill_tidy.perception.tracks import back_project
 from maniskill_tidy.policies.pixels import find_masks, mask_classes, start_threshold
 from maniskill_tidy.tasks.dataset import load_dataset
@@ -64,15 +64,12 @@ def crop(rgb: np.ndarray, depth: np.ndarray, mask: Mask2D, intrinsics, extrinsic
 
 
 def mask_votes(mask: Mask2D, labels: np.ndarray, margins: np.ndarray, object_ids) -> np.ndarray:
-    """The segmenter's margin-weighted votes over the pickupable types under the mask."""
-    step = mask.mask.shape[0] // labels.shape[0]
-    rows, cols = np.nonzero(mask.mask)
-    lab, mar = labels[rows // step, cols // step], margins[rows // step, cols // step]
-    index = np.full(256, -1)
-    index[object_ids] = np.arange(len(object_ids))
-    k = index[lab]
-    v = np.bincount(k[k >= 0], weights=mar[k >= 0], minlength=len(object_ids)).astype(np.float32)
-    return v / max(len(rows), 1)
+    """The segmenter's margin-weighted votes over the pickupable types under the mask, per
+    pixel of the mask."""
+    pickupable = np.zeros(256, bool)
+    pickupable[object_ids] = True
+    votes, _ = type_votes(mask, labels, margins, pickupable)
+    return votes[object_ids].astype(np.float32) / max(int(mask.mask.sum()), 1)
 
 
 def truth_label(mask: Mask2D, cls: np.ndarray, instance: np.ndarray, index: np.ndarray) -> int:
