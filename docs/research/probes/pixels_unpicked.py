@@ -17,6 +17,7 @@ import pixels_probe
 
 from maniskill_tidy.envs.actions import Action, Targeted
 from maniskill_tidy.eval.pixels_losses import PixelsLosses
+from maniskill_tidy.perception.detections import detect_objects, resting_place
 
 NEAR = 0.5  # metres from an object: a teammate's report this close is of it
 
@@ -30,6 +31,7 @@ class Unpicked(PixelsLosses):
         self.flags: dict[str, set[str]] = defaultdict(set)
         self.pickups: dict[str, Counter] = defaultdict(Counter)
         self.aimed: dict[str, str] = {}  # agent -> object its PickUp this step aimed at
+        self.why_not_kept: dict[str, Counter] = defaultdict(Counter)
 
     def decided(self, t, actions, labels) -> None:
         super().decided(t, actions, labels)
@@ -47,6 +49,8 @@ class Unpicked(PixelsLosses):
                     self.flags[oid].add(f"in a {manip}'s memory")
                     if known.misplaced:
                         self.flags[oid].add(f"judged misplaced by a {manip}")
+                elif inner.manipulator and agent.table.instances[sid].type == self.type_of[oid]:
+                    self.why_not_kept[oid].update(why_not_kept(inner, sid))
                 job = inner.job
                 if job is not None and job.kind == "pick" and job.target == slot_id:
                     self.flags[oid].add("a manipulator's pick job")
@@ -75,6 +79,31 @@ class Unpicked(PixelsLosses):
             self.pickups[oid][reason.split(":")[-1].strip()[:40] if reason else "picked"] += 1
 
 
+def why_not_kept(inner, sid: int) -> list[str]:
+    """Why a manipulator's memory did not take the slot its frame showed (``HeuristicAgent.
+    observe``): too few points with a depth for ``detect_objects``, or resting on nothing the
+    floor plan knows (``resting_place``: its lowest point, LOW-th percentile of its heights,
+    further than ON_SURFACE from every surface under it and above ON_FLOOR), with the gap."""
+    frame = inner.map.last_frame
+    d = next((d for d in detect_objects(frame, inner.public.instances) if d.seg_id == sid), None)
+    if d is None:
+        return ["too few points"]
+    if d.object_id in inner.done:
+        return ["given up before (in the agent's done)"]
+    receptacle, _, _ = resting_place(inner.house, d, inner.surfaces)
+    if receptacle:
+        return ["rests on a known surface (taken after the step, or forgotten)"]
+    x, y = float(d.position[0]), float(d.position[1])
+    under = [s.height for s in inner.surfaces
+             if s.bounds[0] - 0.05 <= x <= s.bounds[2] + 0.05
+             and s.bounds[1] - 0.05 <= y <= s.bounds[3] + 0.05]  # fmt: skip
+    if not under:
+        return [f"no surface under it, bottom {d.bottom:.2f} m"]
+    gap = min(under, key=lambda h: abs(d.bottom - h)) - d.bottom
+    return [f"bottom {'below' if gap > 0 else 'above'} the nearest surface by >= "
+            f"{int(abs(gap) * 20) * 5} cm"]  # fmt: skip
+
+
 STAGES = (
     "shown to a manipulator",
     "shown to a manipulator as its type",
@@ -89,6 +118,7 @@ def main() -> None:
     reached: Counter = Counter()
     outcomes: Counter = Counter()
     fates: Counter = Counter()
+    why: Counter = Counter()
     for record, log in pixels_probe.played(args, Unpicked):
         for o, oid in zip(log.result()["objects"], log.misplaced, strict=True):
             fates[o["fate"]] += 1
@@ -101,11 +131,16 @@ def main() -> None:
             outcomes.update(log.pickups[oid])
             print(f"{record.episode} {o['type']}: {sorted(log.flags[oid])} "
                   f"pickups {dict(log.pickups[oid])}")  # fmt: skip
+            if last == "shown to a manipulator as its type":
+                print(f"    not kept, frames by reason: {dict(log.why_not_kept[oid])}")
+                why.update(log.why_not_kept[oid])
     print("fates:", dict(fates))
     print("detected, not picked: the furthest each got")
     for s in ("shown only to others", *STAGES):
         print(f"  {reached[s]:3d}  {s}")
     print("their PickUps:", dict(outcomes))
+    print("frames where a manipulator was shown one as its type and its memory did not take it:",
+          dict(why))  # fmt: skip
 
 
 if __name__ == "__main__":
