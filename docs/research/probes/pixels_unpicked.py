@@ -49,7 +49,8 @@ class Unpicked(PixelsLosses):
                     self.flags[oid].add(f"in a {manip}'s memory")
                     if known.misplaced:
                         self.flags[oid].add(f"judged misplaced by a {manip}")
-                elif inner.manipulator and agent.table.instances[sid].type == self.type_of[oid]:
+                elif (inner.manipulator and agent.table.instances[sid].type == self.type_of[oid]
+                      and (agent.seg == sid).any()):  # fmt: skip
                     self.why_not_kept[oid].update(why_not_kept(inner, sid))
                 job = inner.job
                 if job is not None and job.kind == "pick" and job.target == slot_id:
