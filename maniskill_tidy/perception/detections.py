@@ -23,6 +23,7 @@ from maniskill_tidy.perception.semantic_map import FramePoints
 
 ON_FLOOR = 0.05  # an object whose lowest point is below this lies on the floor
 ON_SURFACE = 0.08  # vertical tolerance between an object's lowest point and a surface
+EDGE = 0.05  # metres around a surface's rectangle where a position still counts as over it
 
 
 @dataclass(frozen=True)
@@ -149,6 +150,14 @@ def surface_table(house: House) -> list[SurfaceSpot]:
     return out
 
 
+def surfaces_under(x: float, y: float, surfaces: list[SurfaceSpot]) -> list[SurfaceSpot]:
+    """The surfaces whose rectangle, widened by EDGE, holds (x, y): a measured position near a
+    surface's edge may fall just outside it."""
+    return [s for s in surfaces
+            if s.bounds[0] - EDGE <= x <= s.bounds[2] + EDGE
+            and s.bounds[1] - EDGE <= y <= s.bounds[3] + EDGE]  # fmt: skip
+
+
 def resting_place(
     house: House, d: Detection, surfaces: list[SurfaceSpot]
 ) -> tuple[str, str | None, str | None]:
@@ -158,10 +167,7 @@ def resting_place(
     if d.bottom < ON_FLOOR:
         return FLOOR, None, house.room_at(x, y)
     best = None
-    for s in surfaces:
-        x0, y0, x1, y1 = s.bounds
-        if not (x0 - 0.05 <= x <= x1 + 0.05 and y0 - 0.05 <= y <= y1 + 0.05):
-            continue
+    for s in surfaces_under(x, y, surfaces):
         gap = abs(d.bottom - s.height)
         if gap < ON_SURFACE and (best is None or gap < best[0]):
             best = (gap, s)

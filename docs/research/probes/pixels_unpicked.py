@@ -17,7 +17,7 @@ import pixels_probe
 
 from maniskill_tidy.envs.actions import Action, Targeted
 from maniskill_tidy.eval.pixels_losses import PixelsLosses
-from maniskill_tidy.perception.detections import detect_objects, resting_place
+from maniskill_tidy.perception.detections import detect_objects, resting_place, surfaces_under
 
 NEAR = 0.5  # metres from an object: a teammate's report this close is of it
 
@@ -95,9 +95,7 @@ def why_not_kept(inner, sid: int) -> list[str]:
     if receptacle:
         return ["rests on a known surface (taken after the step, or forgotten)"]
     x, y = float(d.position[0]), float(d.position[1])
-    under = [s.height for s in inner.surfaces
-             if s.bounds[0] - 0.05 <= x <= s.bounds[2] + 0.05
-             and s.bounds[1] - 0.05 <= y <= s.bounds[3] + 0.05]  # fmt: skip
+    under = [s.height for s in surfaces_under(x, y, inner.surfaces)]
     if not under:
         return [f"no surface under it, bottom {d.bottom:.2f} m"]
     gap = min(under, key=lambda h: abs(d.bottom - h)) - d.bottom
